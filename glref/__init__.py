@@ -1,0 +1,14 @@
+"""glref: the OpenGL reference renderer (moderngl on a headless EGL context).
+
+The only code in the project that imports moderngl. It may import
+`softras.scene` and nothing else from softras (DESIGN.md section 1).
+
+    render(scene, *, samples=None) -> np.ndarray   uint8 (H, W, 4), row 0 = top
+    info() -> dict                                  GL_RENDERER, GL_VERSION, ...
+    GLUnavailable                                   no GL context (one-line reason)
+"""
+
+from .context import GLUnavailable, info
+from .render import render
+
+__all__ = ["render", "info", "GLUnavailable"]

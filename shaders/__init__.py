@@ -1,0 +1,1 @@
+"""GLSL sources for glref, shipped as package data (loaded with importlib.resources)."""

@@ -1,0 +1,22 @@
+#version 450 core
+// glref fragment stage: colour = vertex colour x material colour, written
+// PREMULTIPLIED (rgb * a, a) as DESIGN.md section 3 requires.
+// Specialised by #define (inserted by glref after the #version line):
+//   HAS_COLOR   a per-vertex colour arrives from the vertex stage
+
+uniform vec4 u_color;        // material colour, straight RGBA
+
+#ifdef HAS_COLOR
+in vec4 v_color;
+#endif
+
+out vec4 f_color;
+
+void main() {
+#ifdef HAS_COLOR
+    vec4 c = v_color * u_color;
+#else
+    vec4 c = u_color;
+#endif
+    f_color = vec4(c.rgb * c.a, c.a);
+}

@@ -1,0 +1,19 @@
+#version 450 core
+// glref vertex stage: model space -> clip space, pass the vertex colour on.
+// Specialised by #define (inserted by glref after the #version line):
+//   HAS_COLOR   the mesh has per-vertex RGBA colours (else white)
+
+uniform mat4 u_mvp;          // P @ V @ world, computed in float64 on the CPU
+
+in vec3 in_position;         // model space
+#ifdef HAS_COLOR
+in vec4 in_color;            // straight (not premultiplied) RGBA
+out vec4 v_color;            // perspective-correct (smooth) by default
+#endif
+
+void main() {
+    gl_Position = u_mvp * vec4(in_position, 1.0);
+#ifdef HAS_COLOR
+    v_color = in_color;
+#endif
+}
