@@ -1,0 +1,48 @@
+"""Vertex stage: model space -> clip space.
+
+The matrices themselves (node hierarchy, look-at, projections) are part of the
+scene model (`softras.scene`), because both renderers must agree on them; this
+stage applies them to vertices, the way glref's vertex shader does.
+
+Spaces: model (mesh positions) -> world (`Draw.world`) -> eye (`Camera.view`)
+-> clip (`Camera.projection`).  All matrices use the column-vector convention,
+``clip = P @ V @ M @ [x, y, z, 1]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def model_view_projection(projection: np.ndarray, view: np.ndarray, world: np.ndarray) -> np.ndarray:
+    """Return ``P @ V @ M``, shape (4, 4) float64 (model -> clip)."""
+    return projection @ view @ world
+
+
+def to_clip(positions: np.ndarray, mvp: np.ndarray, precision: str = "gl") -> np.ndarray:
+    """Transform model-space positions to clip space.
+
+    Parameters
+    ----------
+    positions : (N, 3) float array, model space.
+    mvp : (4, 4) float64, model -> clip.
+    precision : "gl" or "exact".
+        "gl" does what glref's vertex shader does with ``u_mvp * vec4(p, 1)``:
+        the matrix and positions rounded to float32, the product summed column
+        by column in float32.  "exact" works in float64.
+
+    Returns
+    -------
+    (N, 4) float64 clip-space positions (x_c, y_c, z_c, w_c); in "gl" mode
+    every value is exactly a float32.
+    """
+    if precision == "gl":
+        m = mvp.astype(np.float32)
+        p = positions.astype(np.float32)
+        clip = m[:, 0] * p[:, 0:1]
+        clip = clip + m[:, 1] * p[:, 1:2]
+        clip = clip + m[:, 2] * p[:, 2:3]
+        clip = clip + m[:, 3]
+        return clip.astype(np.float64)
+    homogeneous = np.concatenate([positions.astype(np.float64), np.ones((len(positions), 1))], axis=1)
+    return homogeneous @ mvp.T
