@@ -1,0 +1,438 @@
+"""The ``softras`` command line.
+
+::
+
+    softras render SCENE -o OUT.png [--backend soft|gl] [--precision gl|exact] [--samples N]
+    softras compare A.png B.png [-o DIFF.png] [--json] [--threshold N]
+                    [--max-bad-fraction F] [--min-ssim S]
+    softras compare SCENE.json [-o DIFF.png] [--json] [--out-dir DIR]
+                    [--precision gl|exact] [--samples N] [tolerance options]
+    softras demo [--scene SCENE.json] [--out-dir DIR] [--json] [--precision gl|exact]
+
+Exit status (DESIGN.md section 6): 0 success or comparison passed, 1 comparison
+failed, 2 bad input or environment error. On status 2 exactly one line,
+``softras: error: <reason>``, goes to stderr, and no output file is created or
+changed: inputs are read and output folders checked before anything is
+written, and every file is written atomically (temporary file + rename).
+
+Only expected failures are turned into status 2 (bad scenes, unreadable
+images, missing OpenGL, unwritable outputs, images of different sizes);
+anything else is a bug and keeps its traceback.
+
+Heavy modules (the pipeline, glref, scikit-image) are imported inside the
+commands, so ``softras --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main", "CLIError", "DEFAULT_DEMO_SCENE"]
+
+#: The demo scene of the README quick start, in the source checkout.
+DEFAULT_DEMO_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "demo.json"
+
+#: Tolerances used when comparing two PNG files (same as softras.compare).
+DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99}
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_ERROR = 2
+
+
+class CLIError(Exception):
+    """An expected failure: bad input or environment. Exit status 2.
+
+    ``str(error)`` is the one-line reason printed after ``softras: error:``.
+    """
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose usage errors are one line on stderr, status 2."""
+
+    def error(self, message: str):  # noqa: D102 - argparse API
+        self.exit(EXIT_ERROR, f"softras: error: {message} (see '{self.prog} --help')\n")
+
+
+# ---------------------------------------------------------------------------
+# Helpers shared by the commands
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def _load_scene(path: str):
+    """Load a scene file, turning a SceneError into a CLIError."""
+    from softras.scene import SceneError, load_scene
+
+    try:
+        return load_scene(path)
+    except SceneError as error:
+        raise CLIError(_one_line(error)) from None
+
+
+def _render(scene, backend: str, precision: str | None, samples: int | None):
+    """Render ``scene`` with one backend; returns (image, seconds).
+
+    Expected failures (missing OpenGL, a scene the backend rejects) become
+    CLIError.
+    """
+    import softras
+    from softras.scene import SceneError
+
+    options = {}
+    if samples is not None:
+        options["samples"] = samples
+    if backend == "soft" and precision is not None:
+        options["precision"] = precision
+
+    gl_unavailable: tuple[type[BaseException], ...] = ()
+    if backend == "gl":
+        try:
+            import glref
+        except ModuleNotFoundError as error:
+            if error.name not in ("moderngl", "glcontext"):
+                raise
+            raise CLIError(f"OpenGL reference renderer unavailable: {_one_line(error)}") from None
+        gl_unavailable = (glref.GLUnavailable,)
+
+    start = time.perf_counter()
+    try:
+        image = softras.render(scene, backend=backend, **options)
+    except SceneError as error:
+        raise CLIError(_one_line(error)) from None
+    except gl_unavailable as error:
+        raise CLIError(f"OpenGL unavailable: {_one_line(error)}") from None
+    return image, time.perf_counter() - start
+
+
+def _gl_description() -> str | None:
+    """One line naming the OpenGL implementation glref used, if known."""
+    import glref
+
+    try:
+        info = glref.info()
+    except glref.GLUnavailable:
+        return None
+    renderer = info.get("GL_RENDERER", "unknown renderer")
+    version = info.get("GL_VERSION")
+    return f"{renderer}, OpenGL {version}" if version else str(renderer)
+
+
+def _check_output_file(path: str | os.PathLike) -> Path:
+    """Check that an output PNG can be written, before anything is done."""
+    from softras.imageio import check_writable
+
+    return check_writable(path)
+
+
+def _check_output_dir(folder: str | os.PathLike) -> Path:
+    """Check that ``folder`` exists and is writable, or can be created."""
+    folder = Path(folder)
+    if folder.exists():
+        if not folder.is_dir():
+            raise CLIError(f"{folder}: not a folder")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise CLIError(f"{folder}: folder is not writable")
+        return folder
+    ancestor = folder.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir() or not os.access(ancestor, os.W_OK | os.X_OK):
+        raise CLIError(f"{folder}: cannot create folder ({ancestor} is not a writable folder)")
+    return folder
+
+
+def _compare(a, b, tolerance: dict):
+    """softras.compare, with a shape mismatch turned into a CLIError."""
+    from softras.metrics import ShapeMismatch, compare
+
+    try:
+        return compare(a, b, **tolerance)
+    except ShapeMismatch as error:
+        raise CLIError(_one_line(error)) from None
+
+
+def _tolerance(args: argparse.Namespace, base: dict) -> dict:
+    """``base`` tolerance overridden by the options given on the command line."""
+    tolerance = {key: base[key] for key in ("threshold", "max_bad_fraction", "min_ssim") if key in base}
+    for key in ("threshold", "max_bad_fraction", "min_ssim"):
+        value = getattr(args, key, None)
+        if value is not None:
+            tolerance[key] = value
+    return tolerance
+
+
+def _report(result, *, as_json: bool, header: list[str], extra: dict, outputs: list[Path]) -> int:
+    """Print the comparison (human summary or JSON) and return the exit status."""
+    if as_json:
+        payload = result.to_dict()
+        payload.update(extra)
+        payload["outputs"] = [str(path) for path in outputs]
+        print(json.dumps(payload, indent=2))
+    else:
+        for line in header:
+            print(line)
+        print(result.summary())
+        if outputs:
+            print("wrote " + ", ".join(str(path) for path in outputs))
+    return EXIT_OK if result.passed else EXIT_FAILED
+
+
+# ---------------------------------------------------------------------------
+# Commands
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """``softras render SCENE -o OUT.png``: render one scene with one backend."""
+    from softras.imageio import write_png_atomic
+
+    if args.backend == "gl" and args.precision is not None:
+        raise CLIError("--precision applies to --backend soft only")
+    scene = _load_scene(args.scene)
+    output = _check_output_file(args.output)
+    image, seconds = _render(scene, args.backend, args.precision, args.samples)
+    write_png_atomic(output, image)
+    height, width = image.shape[:2]
+    print(f"{args.backend}: {width}x{height} in {seconds:.2f} s -> {output}")
+    return EXIT_OK
+
+
+def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | None) -> int:
+    """Render a scene with both backends and compare (compare SCENE, demo)."""
+    from softras.imageio import write_png_atomic
+
+    scene = _load_scene(scene_path)
+    diff_output = _check_output_file(args.output) if getattr(args, "output", None) else None
+    folder = _check_output_dir(out_dir) if out_dir is not None else None
+
+    # GL first: a missing OpenGL context is found before the slow soft render.
+    gl, gl_seconds = _render(scene, "gl", None, args.samples)
+    soft, soft_seconds = _render(scene, "soft", args.precision, args.samples)
+    gl_name = _gl_description()
+    result = _compare(soft, gl, _tolerance(args, scene.tolerance))
+
+    outputs: list[Path] = []
+    if diff_output is not None:
+        write_png_atomic(diff_output, result.diff_image)
+        outputs.append(diff_output)
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, image in (("soft.png", soft), ("gl.png", gl), ("diff.png", result.diff_image)):
+            write_png_atomic(folder / name, image)
+            outputs.append(folder / name)
+
+    height, width = soft.shape[:2]
+    precision = args.precision or "gl"
+    header = [
+        f"scene {scene_path} ({width}x{height}): soft (precision {precision}) vs gl",
+        f"soft {soft_seconds:.2f} s, gl {gl_seconds:.2f} s" + (f" ({gl_name})" if gl_name else ""),
+    ]
+    extra = {
+        "scene": str(scene_path),
+        "precision": precision,
+        "soft_seconds": soft_seconds,
+        "gl_seconds": gl_seconds,
+        "gl_renderer": gl_name,
+    }
+    return _report(result, as_json=args.json, header=header, extra=extra, outputs=outputs)
+
+
+def _compare_files(path_a: str, path_b: str, args: argparse.Namespace) -> int:
+    """Compare two PNG files (compare A B)."""
+    from softras.imageio import read_png, write_png_atomic
+
+    if args.out_dir is not None:
+        raise CLIError("--out-dir applies to 'softras compare SCENE' only")
+    if args.precision is not None or args.samples is not None:
+        raise CLIError("--precision and --samples apply to 'softras compare SCENE' only")
+    a = read_png(path_a)
+    b = read_png(path_b)
+    diff_output = _check_output_file(args.output) if args.output else None
+    result = _compare(a, b, _tolerance(args, DEFAULT_TOLERANCE))
+    outputs = []
+    if diff_output is not None:
+        write_png_atomic(diff_output, result.diff_image)
+        outputs.append(diff_output)
+    height, width = a.shape[:2]
+    header = [f"{path_a} vs {path_b} ({width}x{height})"]
+    extra = {"a": str(path_a), "b": str(path_b)}
+    return _report(result, as_json=args.json, header=header, extra=extra, outputs=outputs)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    """``softras compare A B`` or ``softras compare SCENE``."""
+    inputs = args.inputs
+    if len(inputs) == 2:
+        return _compare_files(inputs[0], inputs[1], args)
+    if len(inputs) == 1:
+        if inputs[0].lower().endswith(".png"):
+            raise CLIError("compare needs two PNG files, or one scene file")
+        return _compare_scene(inputs[0], args, args.out_dir)
+    raise CLIError(f"compare takes two PNG files or one scene file, got {len(inputs)} arguments")
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """``softras demo``: render the demo scene with both backends and compare."""
+    scene = Path(args.scene)
+    if not scene.is_file():
+        raise CLIError(f"{scene}: demo scene not found (run from a source checkout, or pass --scene)")
+    args.output = None
+    return _compare_scene(str(scene), args, args.out_dir)
+
+
+# ---------------------------------------------------------------------------
+# Parser
+
+
+def _threshold(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer 0..255, got {text!r}") from None
+    if not 0 <= value <= 255:
+        raise argparse.ArgumentTypeError(f"expected an integer 0..255, got {text!r}")
+    return value
+
+
+def _fraction(low: float, high: float):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number in [{low:g}, {high:g}], got {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected a number in [{low:g}, {high:g}], got {text!r}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+def _add_render_options(parser: argparse.ArgumentParser, *, backend: bool) -> None:
+    if backend:
+        parser.add_argument("--backend", choices=("soft", "gl"), default="soft",
+                            help="renderer: softras's pipeline or OpenGL through glref (default soft)")
+    parser.add_argument("--precision", choices=("gl", "exact"), default=None,
+                        help="softras precision: 'gl' reproduces OpenGL's snapping (default), "
+                             "'exact' is float64 ground truth")
+    # Both renderers take 1 or 4 (4x MSAA at llvmpipe's positions); widen this
+    # when the pipeline's other sample patterns get a render option.
+    parser.add_argument("--samples", type=int, choices=(1, 4), default=None, metavar="N",
+                        help="samples per pixel, 1 or 4 (default: the scene's)")
+
+
+def _add_output_options(parser: argparse.ArgumentParser, *, out_dir_default: str | None, out_dir_help: str) -> None:
+    parser.add_argument("--json", action="store_true", help="print the result as JSON")
+    parser.add_argument("--out-dir", default=out_dir_default, metavar="DIR", help=out_dir_help)
+
+
+def _add_tolerance_options(parser: argparse.ArgumentParser, defaults: str) -> None:
+    group = parser.add_argument_group("tolerance", f"pass/fail thresholds (default: {defaults})")
+    group.add_argument("--threshold", type=_threshold, default=None, metavar="N",
+                       help="a pixel is bad when a channel differs by more than N/255 (default 2)")
+    group.add_argument("--max-bad-fraction", type=_fraction(0.0, 1.0), default=None, metavar="F",
+                       help="largest allowed fraction of bad pixels (default 0.001)")
+    group.add_argument("--min-ssim", type=_fraction(-1.0, 1.0), default=None, metavar="S",
+                       help="smallest allowed mean SSIM (default 0.99)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the ``softras`` argument parser.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser; each subcommand stores its handler in ``func``.
+    """
+    parser = _Parser(
+        prog="softras",
+        description="A reference software rasterizer, cross-checked image by image against OpenGL.",
+        epilog="Exit status: 0 success or pass, 1 comparison failed, 2 bad input or environment error.",
+    )
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    render = commands.add_parser("render", help="render a scene to a PNG file",
+                                 description="Render a scene file to a PNG image (RGBA, row 0 = top).")
+    render.add_argument("scene", metavar="SCENE", help="scene file (JSON, format version 1)")
+    render.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG file to write")
+    _add_render_options(render, backend=True)
+    render.set_defaults(func=cmd_render)
+
+    compare = commands.add_parser(
+        "compare", help="compare two PNG files, or a scene's soft and gl renderings",
+        usage="softras compare (A.png B.png | SCENE) [-o DIFF.png] [--json] [--out-dir DIR]\n"
+              "                       [--precision {gl,exact}] [--samples N] [--threshold N]\n"
+              "                       [--max-bad-fraction F] [--min-ssim S]",
+        description="Compare two PNG files (A B), or render one scene file with both backends and "
+                    "compare the images with the scene's tolerance. Exit 0 on pass, 1 on fail.",
+    )
+    compare.add_argument("inputs", nargs="+", metavar="INPUT",
+                         help="two PNG files, or one scene file")
+    compare.add_argument("-o", "--output", metavar="DIFF.png",
+                         help="write the difference heat map to this PNG file")
+    _add_output_options(compare, out_dir_default=None,
+                        out_dir_help="SCENE only: write soft.png, gl.png and diff.png into DIR")
+    _add_render_options(compare, backend=False)
+    _add_tolerance_options(compare, "the scene's tolerance for SCENE, else the values below")
+    compare.set_defaults(func=cmd_compare)
+
+    demo = commands.add_parser(
+        "demo", help="render the demo scene with both backends and compare",
+        description="Render the demo scene with softras and OpenGL, compare the two images, and "
+                    "write soft.png, gl.png and diff.png into DIR.",
+    )
+    demo.add_argument("--scene", default=str(DEFAULT_DEMO_SCENE), metavar="SCENE",
+                      help=f"scene file to use (default {DEFAULT_DEMO_SCENE})")
+    _add_output_options(demo, out_dir_default="out", out_dir_help="output folder (default ./out)")
+    _add_render_options(demo, backend=False)
+    _add_tolerance_options(demo, "the scene's tolerance")
+    demo.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the ``softras`` command line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; default ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        Exit status: 0 success or pass, 1 comparison failed, 2 bad input or
+        environment error (one line on stderr).
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:  # argparse: --help (0) or a usage error (2)
+        return exit_.code if isinstance(exit_.code, int) else EXIT_ERROR
+    if getattr(args, "func", None) is None:
+        parser.print_help(sys.stderr)
+        return EXIT_ERROR
+
+    from softras.imageio import ImageError
+
+    try:
+        return args.func(args)
+    except (CLIError, ImageError) as error:
+        message = _one_line(error)
+    except OSError as error:
+        # Environment failures on files and folders (e.g. creating --out-dir).
+        where = f"{error.filename}: " if error.filename else ""
+        message = f"{where}{error.strerror or _one_line(error)}"
+    print(f"softras: error: {message}", file=sys.stderr)
+    return EXIT_ERROR
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
