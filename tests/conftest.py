@@ -1,0 +1,38 @@
+"""Shared test fixtures.
+
+Tests marked ``gl`` need glref's headless OpenGL context.  A missing context
+is a failure, not a skip, unless ``SOFTRAS_ALLOW_NO_GL=1`` (DESIGN.md
+section 7).  glref.context is the one place a context is created.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SCENES = REPO / "scenes"
+
+
+@pytest.fixture(autouse=True)
+def _require_gl(request):
+    if request.node.get_closest_marker("gl") is None:
+        return
+    import glref
+    try:
+        glref.info()
+    except glref.GLUnavailable as exc:
+        if os.environ.get("SOFTRAS_ALLOW_NO_GL") == "1":
+            pytest.skip(str(exc))
+        pytest.fail(str(exc))
+
+
+def write_failure_images(directory: Path, **images: np.ndarray) -> None:
+    """Save named (H, W, 4) uint8 images as PNGs under a test's tmp_path."""
+    from PIL import Image
+    directory.mkdir(parents=True, exist_ok=True)
+    for name, image in images.items():
+        Image.fromarray(image).save(directory / f"{name}.png")
