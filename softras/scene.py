@@ -1,0 +1,868 @@
+"""The scene model: scene format version 1 (DESIGN.md section 5), read and validated.
+
+:func:`load_scene` takes a JSON file path, a dict with the same keys, or an
+already loaded :class:`Scene` (returned as is).  Validation is strict: unknown
+keys, wrong types, NaN or infinite numbers, wrong vector lengths, indices out
+of range and unknown enum strings are all errors.  Every error is a
+:class:`SceneError` whose one-line message starts with the place, e.g.
+``nodes[2].mesh.indices[5]: index 9 out of range for 8 positions``, or with
+the file for a file problem (``scene.json: invalid JSON at line 3 column 5: ...``).
+
+All matrices are float64 in the column-vector convention
+(clip = projection @ view @ world @ [x, y, z, 1]); matrices written in a scene
+file are row-major (the first four numbers are the first row).  Arrays in the
+loaded scene are read-only.
+
+Extensions to the format (DESIGN.md allows them; the section-5 keys keep their
+meaning):
+
+- top-level ``"description"``: a free text string (:attr:`Scene.description`);
+- ``"mesh": {"procedural": "grid" | "sphere" | "fan", ...}`` (see
+  :mod:`softras.meshes` and :data:`_PROCEDURAL_MESH_KEYS`);
+- texture ``"procedural": "checker" | "gradient" | "noise"`` with ``"size"`` and
+  per-kind parameters instead of ``"image"`` (see :data:`_PROCEDURAL_TEXTURE_KEYS`).
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import numbers
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from softras import meshes
+
+FORMAT_VERSION = 1
+MAX_SIDE = 16384                   # pixels per side
+MAX_PIXELS = 64 * 1024 * 1024      # width * height
+MAX_NODE_DEPTH = 64
+
+PROJECTIONS = ("perspective", "orthographic", "frustum")
+PRIMITIVES = ("triangles", "lines")
+SHADINGS = ("unlit", "flat", "gouraud", "phong")
+DEPTH_FUNCTIONS = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always")
+CULL_MODES = ("none", "back", "front")
+BLEND_MODES = ("none", "over", "over_straight", "add", "subtract", "reverse_subtract", "min", "max")
+LIGHT_TYPES = ("point", "directional")
+WRAP_MODES = ("repeat", "clamp_to_edge", "mirrored_repeat")
+MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
+               "nearest_mipmap_linear", "linear_mipmap_linear")
+MAG_FILTERS = ("nearest", "linear")
+PROCEDURAL_TEXTURES = ("checker", "gradient", "noise")
+
+DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99}
+
+
+class SceneError(ValueError):
+    """Bad scene input.
+
+    ``str(e)`` is ONE line that starts with the place, e.g.
+    ``'nodes[2].mesh.indices[5]: index 9 out of range for 8 positions'`` or
+    ``'scene.json: invalid JSON at line 3 column 5: ...'``.  The parts are
+    also available as ``e.place`` and ``e.reason``.
+    """
+
+    def __init__(self, place: str, reason: str):
+        self.place = place
+        self.reason = " ".join(str(reason).split())   # one line
+        super().__init__(f"{place}: {self.reason}")
+
+
+# --------------------------------------------------------------------------- model
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    view: np.ndarray          # (4, 4) float64, world -> eye
+    projection: np.ndarray    # (4, 4) float64, eye -> clip (z_ndc in [-1, 1])
+    kind: str                 # "perspective" | "orthographic" | "frustum" | "matrix"
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    primitive: str             # "triangles" | "lines"
+    positions: np.ndarray      # (N, 3) float64, model space
+    indices: np.ndarray        # (M, 3) int64 for triangles, (M, 2) for lines
+    colors: np.ndarray | None  # (N, 4) float64 RGBA (RGB input gets alpha 1)
+    normals: np.ndarray | None  # (N, 3) float64, model space
+    uvs: np.ndarray | None     # (N, 2) float64, v = 0 at the image top
+
+
+@dataclass(frozen=True, eq=False)
+class Material:
+    color: np.ndarray         # (4,) float64 straight RGBA, default (1, 1, 1, 1)
+    texture: str | None       # name in Scene.textures
+    shading: str              # "unlit" | "flat" | "gouraud" | "phong"
+    ambient: float
+    diffuse: float
+    specular: float
+    shininess: float
+
+
+@dataclass(frozen=True, eq=False)
+class Texture:
+    name: str
+    image: str | None         # absolute path of the image file; None for a procedural texture
+    wrap_s: str
+    wrap_t: str
+    min_filter: str
+    mag_filter: str
+    max_anisotropy: float
+    procedural: str | None = None             # "checker" | "gradient" | "noise"
+    size: tuple[int, int] | None = None       # (width, height) of a procedural texture
+    params: dict = field(default_factory=dict)  # its parameters, defaults filled in
+
+
+@dataclass(frozen=True, eq=False)
+class Light:
+    type: str                        # "point" | "directional"
+    position: np.ndarray | None      # (3,) world space, point lights
+    direction: np.ndarray | None     # (3,) world space, the way the light travels
+    color: np.ndarray                # (3,) linear RGB, >= 0
+
+
+@dataclass(frozen=True, eq=False)
+class Draw:
+    path: str                 # "nodes[0].children[1]"
+    name: str
+    world: np.ndarray         # (4, 4) float64 model -> world = parent.world @ local
+    mesh: Mesh
+    material: Material
+    depth_test: str | None    # None = depth test disabled
+    depth_write: bool
+    cull: str                 # "none" | "back" | "front" (front face = counter-clockwise)
+    blend: str
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    width: int
+    height: int
+    background: np.ndarray    # (4,) float64 straight RGBA in [0, 1]
+    samples: int              # 1 or 4
+    camera: Camera
+    textures: dict[str, Texture]
+    lights: tuple[Light, ...]
+    draws: tuple[Draw, ...]   # depth-first, parents before children, list order
+    tolerance: dict           # threshold (int, /255), max_bad_fraction, min_ssim
+    source: str               # file path or "<dict>"
+    description: str = ""
+
+
+# --------------------------------------------------------------------------- GL matrices
+
+
+def perspective_matrix(fov_y: float, aspect: float, near: float, far: float) -> np.ndarray:
+    """gluPerspective: f = cot(fov_y/2); rows (f/aspect,0,0,0), (0,f,0,0),
+    (0,0,(far+near)/(near−far), 2·far·near/(near−far)), (0,0,−1,0).  fov_y in degrees."""
+    f = 1.0 / math.tan(math.radians(fov_y) / 2.0)
+    return np.array([[f / aspect, 0, 0, 0],
+                     [0, f, 0, 0],
+                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)],
+                     [0, 0, -1, 0]], dtype=np.float64)
+
+
+def frustum_matrix(left, right, bottom, top, near, far) -> np.ndarray:
+    """glFrustum."""
+    return np.array([[2 * near / (right - left), 0, (right + left) / (right - left), 0],
+                     [0, 2 * near / (top - bottom), (top + bottom) / (top - bottom), 0],
+                     [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
+                     [0, 0, -1, 0]], dtype=np.float64)
+
+
+def orthographic_matrix(left, right, bottom, top, near, far) -> np.ndarray:
+    """glOrtho."""
+    return np.array([[2 / (right - left), 0, 0, -(right + left) / (right - left)],
+                     [0, 2 / (top - bottom), 0, -(top + bottom) / (top - bottom)],
+                     [0, 0, -2 / (far - near), -(far + near) / (far - near)],
+                     [0, 0, 0, 1]], dtype=np.float64)
+
+
+def look_at_matrix(eye, target, up) -> np.ndarray:
+    """gluLookAt: f = normalize(target − eye), s = normalize(f × up), u = s × f;
+    rows (s, 0), (u, 0), (−f, 0), (0, 0, 0, 1), times translate(−eye)."""
+    eye = np.asarray(eye, dtype=np.float64)
+    f = np.asarray(target, dtype=np.float64) - eye
+    f = f / np.linalg.norm(f)
+    s = np.cross(f, np.asarray(up, dtype=np.float64))
+    s = s / np.linalg.norm(s)
+    u = np.cross(s, f)
+    rotation = np.identity(4)
+    rotation[0, :3], rotation[1, :3], rotation[2, :3] = s, u, -f
+    return rotation @ translate_matrix(-eye)
+
+
+def translate_matrix(offset) -> np.ndarray:
+    """glTranslate."""
+    matrix = np.identity(4)
+    matrix[:3, 3] = offset
+    return matrix
+
+
+def rotate_matrix(angle_degrees: float, axis) -> np.ndarray:
+    """glRotate: counter-clockwise by ``angle_degrees`` about the (normalised) axis."""
+    x, y, z = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    c, s = math.cos(math.radians(angle_degrees)), math.sin(math.radians(angle_degrees))
+    matrix = np.identity(4)
+    matrix[:3, :3] = [[x * x * (1 - c) + c, x * y * (1 - c) - z * s, x * z * (1 - c) + y * s],
+                      [y * x * (1 - c) + z * s, y * y * (1 - c) + c, y * z * (1 - c) - x * s],
+                      [x * z * (1 - c) - y * s, y * z * (1 - c) + x * s, z * z * (1 - c) + c]]
+    return matrix
+
+
+def scale_matrix(factors) -> np.ndarray:
+    """glScale."""
+    return np.diag([*np.asarray(factors, dtype=np.float64), 1.0])
+
+
+# --------------------------------------------------------------------------- value helpers
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def _type_name(value) -> str:
+    if value is None:
+        return "null"
+    if isinstance(value, (bool, np.bool_)):
+        return "a boolean"
+    if isinstance(value, str):
+        return f"the string {value!r}" if len(value) <= 40 else "a string"
+    if isinstance(value, dict):
+        return "an object"
+    if isinstance(value, (list, tuple)):
+        return f"a list of {len(value)}"
+    return repr(value) if _is_number(value) else type(value).__name__
+
+
+def _number(value, place: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+    """A finite number in [lo, hi] (ints and floats; booleans are not numbers)."""
+    if not _is_number(value):
+        raise SceneError(place, f"expected a number, got {_type_name(value)}")
+    try:
+        value = float(value)
+    except OverflowError:
+        raise SceneError(place, "number too large") from None
+    if not math.isfinite(value):
+        raise SceneError(place, f"expected a finite number, got {value}")
+    if not lo <= value <= hi:
+        if hi == math.inf:
+            raise SceneError(place, f"must be at least {lo:g}, got {value:g}")
+        if lo == -math.inf:
+            raise SceneError(place, f"must be at most {hi:g}, got {value:g}")
+        raise SceneError(place, f"{value:g} is out of range [{lo:g}, {hi:g}]")
+    return value
+
+
+def _positive(value, place: str) -> float:
+    number = _number(value, place)
+    if number <= 0:
+        raise SceneError(place, f"must be positive, got {number:g}")
+    return number
+
+
+def _integer(value, place: str, lo: int, hi: int) -> int:
+    if not _is_int(value):
+        raise SceneError(place, f"expected an integer, got {_type_name(value)}")
+    if not lo <= value <= hi:
+        raise SceneError(place, f"{value} is out of range [{lo}, {hi}]")
+    return int(value)
+
+
+def _bool(value, place: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise SceneError(place, f"expected true or false, got {_type_name(value)}")
+    return bool(value)
+
+
+def _string(value, place: str) -> str:
+    if not isinstance(value, str):
+        raise SceneError(place, f"expected a string, got {_type_name(value)}")
+    return value
+
+
+def _choice(value, place: str, choices) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise SceneError(place, f"expected one of {', '.join(choices)}; got {_type_name(value)}")
+    return value
+
+
+def _list(value, place: str) -> list:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if not isinstance(value, (list, tuple)):
+        raise SceneError(place, f"expected a list, got {_type_name(value)}")
+    return list(value)
+
+
+def _vec(value, n: int | tuple[int, ...], place: str, lo: float = -math.inf, hi: float = math.inf) -> np.ndarray:
+    """A list of ``n`` finite numbers (``n`` may be a tuple of allowed lengths)."""
+    items = _list(value, place)
+    lengths = (n,) if isinstance(n, int) else n
+    if len(items) not in lengths:
+        want = " or ".join(str(k) for k in lengths)
+        raise SceneError(place, f"expected {want} numbers, got {len(items)}")
+    return np.array([_number(x, f"{place}[{i}]", lo, hi) for i, x in enumerate(items)], dtype=np.float64)
+
+
+def _nonzero_vec3(value, place: str) -> np.ndarray:
+    vector = _vec(value, 3, place)
+    if not np.any(vector):
+        raise SceneError(place, "must not be the zero vector")
+    return vector
+
+
+def _color(value, place: str) -> np.ndarray:
+    """RGB or RGBA in [0, 1] -> (4,) RGBA (RGB gets alpha 1)."""
+    rgba = _vec(value, (3, 4), place, 0.0, 1.0)
+    return rgba if len(rgba) == 4 else np.append(rgba, 1.0)
+
+
+def _matrix(value, place: str) -> np.ndarray:
+    """16 numbers, row-major -> (4, 4)."""
+    return _vec(value, 16, place).reshape(4, 4)
+
+
+def _array(value, width: int | tuple[int, ...], place: str, lo: float = -math.inf, hi: float = math.inf) -> np.ndarray:
+    """A list of rows of ``width`` finite numbers -> (N, width) float64.
+
+    All rows must have the same length (``width`` may allow several)."""
+    rows = _list(value, place)
+    widths = (width,) if isinstance(width, int) else width
+    if not rows:
+        return np.zeros((0, widths[0]))
+    first = _list(rows[0], f"{place}[0]")
+    row_width = len(first)
+    if row_width not in widths:
+        want = " or ".join(str(k) for k in widths)
+        raise SceneError(f"{place}[0]", f"expected {want} numbers, got {row_width}")
+    out = np.empty((len(rows), row_width), dtype=np.float64)
+    for i, row in enumerate(rows):
+        row = row if isinstance(row, (list, tuple)) else _list(row, f"{place}[{i}]")
+        if len(row) != row_width:
+            raise SceneError(f"{place}[{i}]", f"expected {row_width} numbers like {place}[0], got {len(row)}")
+        for k, x in enumerate(row):
+            if type(x) is not float and type(x) is not int and not _is_number(x):
+                raise SceneError(f"{place}[{i}][{k}]", f"expected a number, got {_type_name(x)}")
+            try:
+                out[i, k] = x
+            except OverflowError:
+                raise SceneError(f"{place}[{i}][{k}]", "number too large") from None
+    bad = ~np.isfinite(out) | (out < lo) | (out > hi)
+    if bad.any():
+        i, k = np.argwhere(bad)[0]
+        _number(rows[i][k], f"{place}[{i}][{k}]", lo, hi)   # raises with the reason
+    return out
+
+
+def _indices(value, width: int, vertex_count: int, place: str) -> np.ndarray:
+    """Triangles (width 3) or lines (width 2), nested ([[0,1,2], ...]) or flat
+    ([0,1,2, ...]), each index an integer in [0, vertex_count)."""
+    items = _list(value, place)
+    if items and not isinstance(items[0], (list, tuple, np.ndarray)):
+        if len(items) % width:
+            raise SceneError(place, f"a flat index list needs a multiple of {width} entries, got {len(items)}")
+        groups = [items[i:i + width] for i in range(0, len(items), width)]
+        flat = True
+    else:
+        groups = items
+        flat = False
+    out = np.empty((len(groups), width), dtype=np.int64)
+    for g, group in enumerate(groups):
+        group_place = f"{place}[{g}]"
+        if not flat:
+            group = _list(group, group_place)
+            if len(group) != width:
+                raise SceneError(group_place, f"expected {width} indices, got {len(group)}")
+        for k, index in enumerate(group):
+            index_place = f"{place}[{g * width + k}]" if flat else group_place
+            if not _is_int(index):
+                sub = index_place if flat else f"{group_place}[{k}]"
+                raise SceneError(sub, f"expected an integer index, got {_type_name(index)}")
+            if not 0 <= index < vertex_count:
+                raise SceneError(index_place, f"index {index} out of range for {vertex_count} positions")
+            out[g, k] = index
+    return out
+
+
+def _object(value, place: str, allowed, required=()) -> dict:
+    """A dict whose keys are all in ``allowed`` and include ``required``."""
+    if not isinstance(value, dict):
+        raise SceneError(place, f"expected an object, got {_type_name(value)}")
+    for key in value:
+        if key not in allowed:
+            hint = difflib.get_close_matches(str(key), list(allowed), n=1)
+            hint = f"; did you mean {hint[0]!r}?" if hint else ""
+            raise SceneError(_join(place, key), f"unknown key (allowed: {', '.join(allowed)}){hint}")
+    for key in required:
+        if key not in value:
+            raise SceneError(_join(place, key), "missing (required)")
+    return value
+
+
+def _join(place: str, key) -> str:
+    return str(key) if place == "scene" else f"{place}.{key}"
+
+
+def _readonly(array: np.ndarray | None) -> np.ndarray | None:
+    if array is not None:
+        array.setflags(write=False)
+    return array
+
+
+# --------------------------------------------------------------------------- sections
+
+
+_TOP_KEYS = ("softras_scene", "description", "width", "height", "background", "samples",
+             "camera", "textures", "lights", "nodes", "tolerance")
+
+
+def _parse_size(data: dict) -> tuple[int, int]:
+    width = _integer(data["width"], "width", 1, MAX_SIDE)
+    height = _integer(data["height"], "height", 1, MAX_SIDE)
+    if width * height > MAX_PIXELS:
+        raise SceneError("width", f"{width} x {height} is {width * height} pixels, more than the limit {MAX_PIXELS}")
+    return width, height
+
+
+_CAMERA_KEYS = ("projection", "fov_y", "aspect", "near", "far", "left", "right", "bottom", "top",
+                "eye", "target", "up", "view_matrix", "projection_matrix")
+_PROJECTION_KEYS = {"perspective": ("fov_y", "aspect", "near", "far"),
+                    "orthographic": ("left", "right", "bottom", "top", "near", "far"),
+                    "frustum": ("left", "right", "bottom", "top", "near", "far")}
+
+
+def _parse_camera(value, width: int, height: int) -> Camera:
+    """Projection from ``projection`` and its parameters, or ``projection_matrix``;
+    view from eye/target/up (gluLookAt) or ``view_matrix``.  Default view: eye at
+    the origin looking down −z with +y up, the identity.  With no camera at all
+    both matrices are the identity (positions are clip coordinates)."""
+    place = "camera"
+    data = _object(value, place, _CAMERA_KEYS)
+
+    if "view_matrix" in data:
+        for key in ("eye", "target", "up"):
+            if key in data:
+                raise SceneError(f"camera.{key}", "not allowed together with camera.view_matrix")
+        view = _matrix(data["view_matrix"], "camera.view_matrix")
+    else:
+        eye = _vec(data.get("eye", [0, 0, 0]), 3, "camera.eye")
+        target = _vec(data["target"], 3, "camera.target") if "target" in data else eye + (0, 0, -1)
+        up = _nonzero_vec3(data.get("up", [0, 1, 0]), "camera.up")
+        forward = target - eye
+        if not np.any(forward):
+            raise SceneError("camera.target", "must differ from camera.eye")
+        if np.linalg.norm(np.cross(forward / np.linalg.norm(forward), up / np.linalg.norm(up))) < 1e-9:
+            raise SceneError("camera.up", "must not be parallel to the view direction (target − eye)")
+        view = look_at_matrix(eye, target, up)
+
+    if "projection_matrix" in data:
+        for key in ("projection",) + _PROJECTION_KEYS["orthographic"] + ("fov_y", "aspect"):
+            if key in data:
+                raise SceneError(f"camera.{key}", "not allowed together with camera.projection_matrix")
+        return Camera(_readonly(view), _readonly(_matrix(data["projection_matrix"], "camera.projection_matrix")), "matrix")
+    if "projection" not in data:
+        if any(key in data for key in _PROJECTION_KEYS["orthographic"] + ("fov_y", "aspect")):
+            raise SceneError("camera.projection", "missing (required when projection parameters are given)")
+        return Camera(_readonly(view), _readonly(np.identity(4)), "matrix")
+
+    kind = _choice(data["projection"], "camera.projection", PROJECTIONS)
+    allowed = _PROJECTION_KEYS[kind]
+    for key in _PROJECTION_KEYS["orthographic"] + ("fov_y", "aspect"):
+        if key in data and key not in allowed:
+            raise SceneError(f"camera.{key}", f"not a parameter of the {kind} camera (those are: {', '.join(allowed)})")
+    for key in allowed:
+        if key not in data and key != "aspect":
+            raise SceneError(f"camera.{key}", f"missing (required for a {kind} camera)")
+
+    near, far = _number(data["near"], "camera.near"), _number(data["far"], "camera.far")
+    if kind == "perspective":
+        fov_y = _number(data["fov_y"], "camera.fov_y")
+        if not 0 < fov_y < 180:
+            raise SceneError("camera.fov_y", f"must be between 0 and 180 degrees (exclusive), got {fov_y:g}")
+        aspect = _positive(data["aspect"], "camera.aspect") if "aspect" in data else width / height
+        _check_near_far(near, far, positive=True)
+        projection = perspective_matrix(fov_y, aspect, near, far)
+    else:
+        left, right = _number(data["left"], "camera.left"), _number(data["right"], "camera.right")
+        bottom, top = _number(data["bottom"], "camera.bottom"), _number(data["top"], "camera.top")
+        if left == right:
+            raise SceneError("camera.right", "must differ from camera.left")
+        if bottom == top:
+            raise SceneError("camera.top", "must differ from camera.bottom")
+        _check_near_far(near, far, positive=kind == "frustum")
+        matrix = frustum_matrix if kind == "frustum" else orthographic_matrix
+        projection = matrix(left, right, bottom, top, near, far)
+    return Camera(_readonly(view), _readonly(projection), kind)
+
+
+def _check_near_far(near: float, far: float, positive: bool) -> None:
+    if positive and near <= 0:
+        raise SceneError("camera.near", f"must be positive, got {near:g}")
+    if positive and far <= near:
+        raise SceneError("camera.far", f"must be greater than camera.near ({near:g}), got {far:g}")
+    if not positive and far == near:
+        raise SceneError("camera.far", "must differ from camera.near")
+
+
+_TEXTURE_KEYS = ("image", "procedural", "size", "wrap_s", "wrap_t", "min_filter", "mag_filter", "max_anisotropy")
+# Parameters of procedural textures, with their defaults.
+_PROCEDURAL_TEXTURE_KEYS = {
+    "checker": {"squares": 8, "color0": [0, 0, 0, 1], "color1": [1, 1, 1, 1]},
+    "gradient": {"direction": "horizontal", "color0": [0, 0, 0, 1], "color1": [1, 1, 1, 1]},
+    "noise": {"seed": 0},
+}
+
+
+def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
+    textures = {}
+    if not isinstance(value, dict):
+        raise SceneError("textures", f"expected an object of named textures, got {_type_name(value)}")
+    for name, entry in value.items():
+        place = f"textures.{name}"
+        if not name:
+            raise SceneError("textures", "a texture name must not be empty")
+        extra = ()
+        if isinstance(entry, dict) and "procedural" in entry:
+            kind = _choice(entry["procedural"], f"{place}.procedural", PROCEDURAL_TEXTURES)
+            extra = tuple(_PROCEDURAL_TEXTURE_KEYS[kind])
+        data = _object(entry, place, _TEXTURE_KEYS + extra)
+        if ("image" in data) == ("procedural" in data):
+            raise SceneError(place, "needs exactly one of 'image' and 'procedural'")
+        image = procedural = size = None
+        params = {}
+        if "image" in data:
+            if "size" in data:
+                raise SceneError(f"{place}.size", "only for procedural textures (an image has its own size)")
+            image = os.path.normpath(os.path.join(base_dir, _string(data["image"], f"{place}.image")))
+            if not os.path.isfile(image):
+                raise SceneError(f"{place}.image", f"file not found: {image}")
+        else:
+            procedural = _choice(data["procedural"], f"{place}.procedural", PROCEDURAL_TEXTURES)
+            if "size" not in data:
+                raise SceneError(f"{place}.size", "missing (required for a procedural texture)")
+            size_items = _list(data["size"], f"{place}.size")
+            if len(size_items) != 2:
+                raise SceneError(f"{place}.size", f"expected 2 integers [width, height], got {len(size_items)}")
+            size = tuple(_integer(v, f"{place}.size[{i}]", 1, MAX_SIDE) for i, v in enumerate(size_items))
+            for key, default in _PROCEDURAL_TEXTURE_KEYS[procedural].items():
+                raw = data.get(key, default)
+                key_place = f"{place}.{key}"
+                if key == "squares":
+                    params[key] = _integer(raw, key_place, 1, MAX_SIDE)
+                elif key == "seed":
+                    params[key] = _integer(raw, key_place, 0, 2**32 - 1)
+                elif key == "direction":
+                    params[key] = _choice(raw, key_place, ("horizontal", "vertical"))
+                else:
+                    params[key] = _readonly(_color(raw, key_place))
+        textures[name] = Texture(
+            name=name, image=image,
+            wrap_s=_choice(data.get("wrap_s", "repeat"), f"{place}.wrap_s", WRAP_MODES),
+            wrap_t=_choice(data.get("wrap_t", "repeat"), f"{place}.wrap_t", WRAP_MODES),
+            # GL's defaults: NEAREST_MIPMAP_LINEAR and LINEAR.
+            min_filter=_choice(data.get("min_filter", "nearest_mipmap_linear"), f"{place}.min_filter", MIN_FILTERS),
+            mag_filter=_choice(data.get("mag_filter", "linear"), f"{place}.mag_filter", MAG_FILTERS),
+            max_anisotropy=_number(data.get("max_anisotropy", 1), f"{place}.max_anisotropy", 1, 16),
+            procedural=procedural, size=size, params=params)
+    return textures
+
+
+def _parse_light(value, place: str) -> Light:
+    data = _object(value, place, ("type", "position", "direction", "color"), required=("type",))
+    kind = _choice(data["type"], f"{place}.type", LIGHT_TYPES)
+    needed, forbidden = ("position", "direction") if kind == "point" else ("direction", "position")
+    if forbidden in data:
+        raise SceneError(f"{place}.{forbidden}", f"not used by a {kind} light")
+    if needed not in data:
+        raise SceneError(f"{place}.{needed}", f"missing (required for a {kind} light)")
+    position = _vec(data["position"], 3, f"{place}.position") if kind == "point" else None
+    direction = _nonzero_vec3(data["direction"], f"{place}.direction") if kind == "directional" else None
+    color = _vec(data.get("color", [1, 1, 1]), 3, f"{place}.color", 0.0)
+    return Light(kind, _readonly(position), _readonly(direction), _readonly(color))
+
+
+_MESH_KEYS = ("primitive", "positions", "indices", "colors", "normals", "uvs", "procedural")
+# Parameters of procedural meshes: key -> (kind of value, default or None if required).
+_PROCEDURAL_MESH_KEYS = {
+    "grid": {"cols": ("count", None), "rows": ("count", None), "size": ("size2", [1, 1]),
+             "corner_colors": ("colors4", None)},
+    "sphere": {"segments": ("count", None), "rings": ("count", None), "radius": ("positive", 1),
+               "color_from_normal": ("bool", False)},
+    "fan": {"count": ("count", None), "radius": ("positive", 1), "angle": ("angle", 360),
+            "center_color": ("color", None), "rim_colors": ("colors", None)},
+}
+_REQUIRED = object()
+
+
+def _parse_mesh(value, place: str, budget: list[int]) -> Mesh:
+    """``budget``: a one-element list, procedural triangles the scene may still make."""
+    if isinstance(value, dict) and "procedural" in value:
+        return _parse_procedural_mesh(value, place, budget)
+    data = _object(value, place, _MESH_KEYS, required=("positions",))
+    primitive = _choice(data.get("primitive", "triangles"), f"{place}.primitive", PRIMITIVES)
+    width = 3 if primitive == "triangles" else 2
+    positions = _array(data["positions"], 3, f"{place}.positions")
+    count = len(positions)
+    if count == 0:
+        raise SceneError(f"{place}.positions", "must not be empty")
+    if "indices" in data:
+        indices = _indices(data["indices"], width, count, f"{place}.indices")
+    else:
+        if count % width:
+            raise SceneError(f"{place}.positions", f"without indices, {primitive} need a multiple of {width} positions, got {count}")
+        indices = np.arange(count, dtype=np.int64).reshape(-1, width)
+
+    def per_vertex(key, widths, lo=-math.inf, hi=math.inf):
+        if key not in data:
+            return None
+        array = _array(data[key], widths, f"{place}.{key}", lo, hi)
+        if len(array) != count:
+            raise SceneError(f"{place}.{key}", f"{len(array)} entries for {count} positions")
+        return array
+
+    colors = per_vertex("colors", (3, 4), 0.0, 1.0)
+    if colors is not None and colors.shape[1] == 3:
+        colors = np.concatenate([colors, np.ones((count, 1))], axis=1)
+    normals = per_vertex("normals", 3)
+    uvs = per_vertex("uvs", 2)
+    return Mesh(primitive, *(_readonly(a) for a in (positions, indices, colors, normals, uvs)))
+
+
+def _parse_procedural_mesh(value, place: str, budget: list[int]) -> Mesh:
+    kind = _choice(value["procedural"], f"{place}.procedural", tuple(_PROCEDURAL_MESH_KEYS))
+    spec = _PROCEDURAL_MESH_KEYS[kind]
+    data = _object(value, place, ("procedural",) + tuple(spec))
+    args = {}
+    for key, (form, default) in spec.items():
+        key_place = f"{place}.{key}"
+        if key not in data:
+            if default is None and form == "count":
+                raise SceneError(key_place, f"missing (required for a {kind} mesh)")
+            args[key] = default
+            continue
+        raw = data[key]
+        if form == "count":
+            args[key] = _integer(raw, key_place, 1, meshes.MAX_TRIANGLES)
+        elif form == "positive":
+            args[key] = _positive(raw, key_place)
+        elif form == "angle":
+            args[key] = _number(raw, key_place, 0, 360)
+            if args[key] == 0:
+                raise SceneError(key_place, "must be greater than 0 degrees")
+        elif form == "size2":
+            args[key] = [_positive(v, f"{key_place}[{i}]") for i, v in enumerate(_vec(raw, 2, key_place))]
+        elif form == "bool":
+            args[key] = _bool(raw, key_place)
+        elif form == "color":
+            args[key] = _color(raw, key_place)
+        else:  # "colors4" (exactly four) or "colors" (one or more)
+            items = _list(raw, key_place)
+            if form == "colors4" and len(items) != 4:
+                raise SceneError(key_place, f"expected 4 colours (bottom-left, bottom-right, top-right, top-left), got {len(items)}")
+            if not items:
+                raise SceneError(key_place, "expected at least one colour")
+            args[key] = [_color(c, f"{key_place}[{i}]") for i, c in enumerate(items)]
+
+    if kind == "sphere" and args["segments"] < 3:
+        raise SceneError(f"{place}.segments", f"a sphere needs at least 3 segments, got {args['segments']}")
+    if kind == "sphere" and args["rings"] < 2:
+        raise SceneError(f"{place}.rings", f"a sphere needs at least 2 rings, got {args['rings']}")
+    if kind == "fan" and args["angle"] == 360 and args["count"] < 3:
+        raise SceneError(f"{place}.count", "a full-turn fan needs at least 3 triangles")
+    triangles = meshes.triangle_count(kind, **args)
+    if triangles > budget[0]:
+        raise SceneError(place, f"this {kind} has {triangles} triangles; the scene may have at most "
+                                f"{meshes.MAX_TRIANGLES} procedural triangles in all")
+    budget[0] -= triangles
+    arrays = meshes.PROCEDURAL[kind](**args)
+    return Mesh("triangles", *(_readonly(np.ascontiguousarray(a)) if a is not None else None for a in arrays))
+
+
+_MATERIAL_KEYS = ("color", "texture", "shading", "ambient", "diffuse", "specular", "shininess")
+
+
+def _parse_material(value, place: str, textures: dict[str, Texture]) -> Material:
+    data = _object(value, place, _MATERIAL_KEYS)
+    texture = None
+    if "texture" in data and data["texture"] is not None:
+        texture = _string(data["texture"], f"{place}.texture")
+        if texture not in textures:
+            known = ", ".join(textures) or "none"
+            raise SceneError(f"{place}.texture", f"unknown texture {texture!r} (defined: {known})")
+    return Material(
+        color=_readonly(_color(data.get("color", [1, 1, 1, 1]), f"{place}.color")),
+        texture=texture,
+        shading=_choice(data.get("shading", "unlit"), f"{place}.shading", SHADINGS),
+        ambient=_number(data.get("ambient", 0.1), f"{place}.ambient", 0.0),
+        diffuse=_number(data.get("diffuse", 0.8), f"{place}.diffuse", 0.0),
+        specular=_number(data.get("specular", 0.5), f"{place}.specular", 0.0),
+        shininess=_number(data.get("shininess", 32), f"{place}.shininess", 0.0, 4096.0))
+
+
+_NODE_KEYS = ("name", "matrix", "translate", "rotate", "scale", "mesh", "material",
+              "depth_test", "depth_write", "cull", "blend", "children")
+_DRAW_STATE_KEYS = ("material", "depth_test", "depth_write", "cull", "blend")
+
+
+def _local_matrix(data: dict, place: str) -> np.ndarray:
+    """``matrix`` (row-major), or translate · rotate · scale (each optional)."""
+    if "matrix" in data:
+        for key in ("translate", "rotate", "scale"):
+            if key in data:
+                raise SceneError(f"{place}.{key}", "not allowed together with matrix")
+        return _matrix(data["matrix"], f"{place}.matrix")
+    local = np.identity(4)
+    if "translate" in data:
+        local = local @ translate_matrix(_vec(data["translate"], 3, f"{place}.translate"))
+    if "rotate" in data:
+        angle, *axis = _vec(data["rotate"], 4, f"{place}.rotate")
+        if not np.any(axis):
+            raise SceneError(f"{place}.rotate", "the axis (numbers 2 to 4) must not be zero")
+        local = local @ rotate_matrix(angle, axis)
+    if "scale" in data:
+        local = local @ scale_matrix(_vec(data["scale"], 3, f"{place}.scale"))
+    return local
+
+
+def _depth_test(value, place: str) -> str | None:
+    if isinstance(value, bool):
+        return "less" if value else None
+    if not isinstance(value, str) or value not in DEPTH_FUNCTIONS:
+        raise SceneError(place, f"expected false, true or one of {', '.join(DEPTH_FUNCTIONS)}; got {_type_name(value)}")
+    return value
+
+
+def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws: list, budget, depth: int) -> None:
+    """Append a Draw for every node with a mesh: depth-first, parent before its
+    children, in list order (GL draw-call order)."""
+    if depth > MAX_NODE_DEPTH:
+        raise SceneError(place, f"nodes nested more than {MAX_NODE_DEPTH} levels deep")
+    for i, node in enumerate(_list(nodes, place)):
+        node_place = f"{place}[{i}]"
+        data = _object(node, node_place, _NODE_KEYS)
+        name = _string(data["name"], f"{node_place}.name") if "name" in data else node_place
+        world = parent_world @ _local_matrix(data, node_place)
+        if "mesh" in data:
+            mesh = _parse_mesh(data["mesh"], f"{node_place}.mesh", budget)
+            material = _parse_material(data.get("material", {}), f"{node_place}.material", textures)
+            if material.texture is not None and mesh.uvs is None:
+                raise SceneError(f"{node_place}.mesh", f"material uses texture {material.texture!r} but the mesh has no uvs")
+            if material.shading in ("gouraud", "phong") and mesh.normals is None:
+                raise SceneError(f"{node_place}.mesh", f"{material.shading} shading needs normals")
+            draws.append(Draw(
+                path=node_place, name=name, world=_readonly(world.copy()), mesh=mesh, material=material,
+                depth_test=_depth_test(data.get("depth_test", "less"), f"{node_place}.depth_test"),
+                depth_write=_bool(data.get("depth_write", True), f"{node_place}.depth_write"),
+                cull=_choice(data.get("cull", "none"), f"{node_place}.cull", CULL_MODES),
+                blend=_choice(data.get("blend", "none"), f"{node_place}.blend", BLEND_MODES)))
+        else:
+            for key in _DRAW_STATE_KEYS:
+                if key in data:
+                    raise SceneError(f"{node_place}.{key}", "a node without a mesh draws nothing (give it to the node with the mesh)")
+        if "children" in data:
+            _flatten_nodes(data["children"], f"{node_place}.children", world, textures, draws, budget, depth + 1)
+
+
+def _parse_tolerance(value) -> dict:
+    data = _object(value, "tolerance", tuple(DEFAULT_TOLERANCE))
+    tolerance = dict(DEFAULT_TOLERANCE)
+    if "threshold" in data:
+        tolerance["threshold"] = _integer(data["threshold"], "tolerance.threshold", 0, 255)
+    if "max_bad_fraction" in data:
+        tolerance["max_bad_fraction"] = _number(data["max_bad_fraction"], "tolerance.max_bad_fraction", 0, 1)
+    if "min_ssim" in data:
+        tolerance["min_ssim"] = _number(data["min_ssim"], "tolerance.min_ssim", -1, 1)
+    return tolerance
+
+
+# --------------------------------------------------------------------------- entry points
+
+
+def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = None) -> Scene:
+    """Validate a scene dict; relative paths resolve against ``base_dir`` (default: the current folder)."""
+    base_dir = os.path.abspath(base_dir if base_dir is not None else os.getcwd())
+    data = _object(data, "scene", _TOP_KEYS, required=("softras_scene", "width", "height"))
+    version = data["softras_scene"]
+    if not _is_int(version) or version != FORMAT_VERSION:
+        raise SceneError("softras_scene", f"unsupported format version {_type_name(version)} (this softras reads version {FORMAT_VERSION})")
+    description = _string(data["description"], "description") if "description" in data else ""
+    width, height = _parse_size(data)
+    samples = data.get("samples", 1)
+    if not _is_int(samples) or samples not in (1, 4):
+        raise SceneError("samples", f"expected 1 or 4, got {_type_name(samples)}")
+    background = _color(data.get("background", [0, 0, 0, 1]), "background")
+    camera = _parse_camera(data.get("camera", {}), width, height)
+    textures = _parse_textures(data.get("textures", {}), base_dir)
+    lights = tuple(_parse_light(light, f"lights[{i}]") for i, light in enumerate(_list(data.get("lights", []), "lights")))
+    draws: list[Draw] = []
+    _flatten_nodes(data.get("nodes", []), "nodes", np.identity(4), textures, draws, [meshes.MAX_TRIANGLES], 0)
+    tolerance = _parse_tolerance(data.get("tolerance", {}))
+    return Scene(width=width, height=height, background=_readonly(background), samples=int(samples),
+                 camera=camera, textures=textures, lights=lights, draws=tuple(draws),
+                 tolerance=tolerance, source=source, description=description)
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _no_duplicate_keys(pairs):
+    result = {}
+    for key, value in pairs:
+        if key in result:
+            raise ValueError(f"duplicate key {key!r}")
+        result[key] = value
+    return result
+
+
+def _read_json(path: str) -> Any:
+    try:
+        with open(path, encoding="utf-8") as file:
+            text = file.read()
+    except FileNotFoundError:
+        raise SceneError(path, "no such file") from None
+    except IsADirectoryError:
+        raise SceneError(path, "is a folder, not a scene file") from None
+    except PermissionError:
+        raise SceneError(path, "permission denied") from None
+    except UnicodeDecodeError as error:
+        raise SceneError(path, f"not UTF-8 text (byte {error.start})") from None
+    except OSError as error:
+        raise SceneError(path, error.strerror or str(error)) from None
+    try:
+        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicate_keys)
+    except json.JSONDecodeError as error:
+        raise SceneError(path, f"invalid JSON at line {error.lineno} column {error.colno}: {error.msg}") from None
+    except ValueError as error:   # from the hooks above
+        raise SceneError(path, f"invalid JSON: {error}") from None
+    except RecursionError:
+        raise SceneError(path, "invalid JSON: nested too deeply") from None
+
+
+def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
+    """Load and validate a scene: a JSON file path, a dict, or a Scene (returned as is).
+
+    Raises :class:`SceneError` (one line, starting with the place) for any problem.
+    """
+    if isinstance(source, Scene):
+        return source
+    if isinstance(source, dict):
+        return scene_from_dict(source)
+    if isinstance(source, (str, os.PathLike)):
+        path = os.fspath(source)
+        data = _read_json(path)
+        if not isinstance(data, dict):
+            raise SceneError(path, f"the top level must be a JSON object, got {_type_name(data)}")
+        return scene_from_dict(data, source=path, base_dir=os.path.dirname(os.path.abspath(path)))
+    raise SceneError("scene", f"expected a file path, a dict or a Scene, got {type(source).__name__}")
