@@ -8,6 +8,7 @@
     softras compare SCENE.json [-o DIFF.png] [--json] [--out-dir DIR]
                     [--precision gl|exact] [--samples N] [tolerance options]
     softras demo [--scene SCENE.json] [--out-dir DIR] [--json] [--precision gl|exact]
+    softras golden [--update] [--golden-dir DIR] [--out-dir DIR] [PATH ...]
 
 Exit status (DESIGN.md section 6): 0 success or comparison passed, 1 comparison
 failed, 2 bad input or environment error. On status 2 exactly one line,
@@ -36,6 +37,9 @@ __all__ = ["main", "CLIError", "DEFAULT_DEMO_SCENE"]
 
 #: The demo scene of the README quick start, in the source checkout.
 DEFAULT_DEMO_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "demo.json"
+
+#: Where ``softras golden`` keeps the golden images, in the source checkout.
+DEFAULT_GOLDEN_DIR = Path(__file__).resolve().parents[1] / "golden"
 
 #: Tolerances used when comparing two PNG files (same as softras.compare).
 DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99}
@@ -287,6 +291,87 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return _compare_scene(str(scene), args, args.out_dir)
 
 
+def _scene_paths(paths: list[str]) -> list[Path]:
+    """Scene files from PATH arguments: files as given, folders expanded to *.json."""
+    found: list[Path] = []
+    for text in paths:
+        path = Path(text)
+        if path.is_dir():
+            found.extend(sorted(path.glob("*.json")))
+        elif path.is_file():
+            found.append(path)
+        else:
+            raise CLIError(f"{path}: no such scene file")
+    if not found:
+        raise CLIError("no scene files in " + ", ".join(paths))
+    return found
+
+
+def _write_golden_failure(folder: Path, result) -> Path:
+    """Write golden / gl / soft images and diff heat maps of a failed scene."""
+    from softras.imageio import write_png_atomic
+    from softras.metrics import compare
+
+    target = folder / Path(result.golden).stem
+    target.mkdir(parents=True, exist_ok=True)
+    images = result.images
+    for name, image in images.items():
+        write_png_atomic(target / f"{name}.png", image)
+    if "golden" in images:
+        for name in ("gl", "soft"):
+            if name in images:
+                write_png_atomic(target / f"diff_{name}.png", compare(images[name], images["golden"]).diff_image)
+    return target
+
+
+def cmd_golden(args: argparse.Namespace) -> int:
+    """``softras golden [--update] [PATH ...]``: verify or rewrite the golden images."""
+    from softras import golden
+
+    start = time.perf_counter()
+    if args.update and args.out_dir is not None:
+        raise CLIError("--out-dir applies to verification only, not --update")
+    if args.paths:
+        paths = _scene_paths(args.paths)
+    else:
+        paths = golden.default_scenes()
+        if not paths:
+            raise CLIError(f"no scene files in {golden.SCENES_DIR}")
+    golden_dir = Path(args.golden_dir)
+    out_dir = _check_output_dir(args.out_dir) if args.out_dir is not None else None
+
+    def show(item) -> None:
+        print(item.line(), flush=True)
+
+    try:
+        if args.update:
+            changes = golden.update(paths, golden_dir, prune=not args.paths, on_change=show)
+        else:
+            results = golden.verify(paths, golden_dir, orphans=not args.paths,
+                                    keep_images=out_dir is not None, on_result=show)
+    except golden.GoldenError as error:
+        raise CLIError(_one_line(error)) from None
+    seconds = time.perf_counter() - start
+
+    if args.update:
+        counts = {status: sum(change.status == status for change in changes)
+                  for status in ("added", "changed", "unchanged", "removed")}
+        summary = ", ".join(f"{count} {status}" for status, count in counts.items())
+        written = "" if counts["added"] + counts["changed"] + counts["removed"] else " (nothing written)"
+        print(f"golden update {golden_dir}: {len(paths)} scene{'s' if len(paths) != 1 else ''}, "
+              f"{summary}{written} in {seconds:.1f} s")
+        return EXIT_OK
+
+    failed = [result for result in results if not result.passed]
+    if out_dir is not None and failed:
+        written = [_write_golden_failure(out_dir, result) for result in failed if result.images]
+        if written:
+            print(f"wrote images of {len(written)} failed scene{'s' if len(written) != 1 else ''} under {out_dir}")
+    print(f"golden verify {golden_dir}: {len(results)} checked, {len(results) - len(failed)} passed, "
+          f"{len(failed)} failed in {seconds:.1f} s")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
 # ---------------------------------------------------------------------------
 # Parser
 
@@ -394,6 +479,26 @@ def build_parser() -> argparse.ArgumentParser:
     _add_render_options(demo, backend=False)
     _add_tolerance_options(demo, "the scene's tolerance")
     demo.set_defaults(func=cmd_demo)
+
+    golden = commands.add_parser(
+        "golden", help="verify the golden images (or rewrite them with --update)",
+        description="Verify the golden images of the scenes: each golden PNG must match the hash in "
+                    "manifest.json, glref must reproduce it exactly (same OpenGL; other OpenGL: the "
+                    "scene's tolerance), and softras must match it within the scene's tolerance. "
+                    "Exit 0 when all pass, 1 when any fails. With --update, render the scenes with "
+                    "glref and replace the golden images, all or nothing.",
+    )
+    golden.add_argument("paths", nargs="*", metavar="PATH",
+                        help="scene files or folders of them (default: all of scenes/; a full --update "
+                             "also removes golden images whose scene is gone)")
+    golden.add_argument("--update", action="store_true",
+                        help="render the scenes with glref and rewrite their golden images and manifest")
+    golden.add_argument("--golden-dir", default=str(DEFAULT_GOLDEN_DIR), metavar="DIR",
+                        help=f"golden image folder (default {DEFAULT_GOLDEN_DIR})")
+    golden.add_argument("--out-dir", default=None, metavar="DIR",
+                        help="verification: write golden, gl, soft and diff images of failed scenes "
+                             "into DIR/<scene>/")
+    golden.set_defaults(func=cmd_golden)
     return parser
 
 
