@@ -55,13 +55,18 @@ def depth_at_samples(vertices: np.ndarray, pixel_x: np.ndarray, pixel_y: np.ndar
 
     vertices : (F, 3, 3) window x, y, z_w; pixel_x, pixel_y : (F,) pixels;
     sample_positions : (S, 2) positions within the pixel in [0, 1).
-    Returns (F, S) float64: z_w is linear in window space, so it is evaluated
-    from the triangle's depth plane at each sample.
+    Returns (F, S) float64.  z_w is linear in window space, so it is
+    evaluated from the triangle's depth plane
+    ``z = z_0 + dz/dx (x - x_0) + dz/dy (y - y_0)``, as GL implementations do;
+    a triangle of constant depth gets exactly that depth everywhere (which
+    matters for the "equal" depth test).
     """
-    f, s = len(pixel_x), len(sample_positions)
-    points = np.empty((f, s, 2))
-    points[..., 0] = pixel_x[:, None] + sample_positions[None, :, 0]
-    points[..., 1] = pixel_y[:, None] + sample_positions[None, :, 1]
-    lam = barycentric(np.repeat(vertices[:, None, :, :2], s, axis=1).reshape(f * s, 3, 2),
-                      points.reshape(f * s, 2)).reshape(f, s, 3)
-    return np.einsum("fsi,fi->fs", lam, vertices[..., 2])
+    x, y, z = vertices[..., 0], vertices[..., 1], vertices[..., 2]
+    dx1, dy1, dz1 = x[:, 1] - x[:, 0], y[:, 1] - y[:, 0], z[:, 1] - z[:, 0]
+    dx2, dy2, dz2 = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0], z[:, 2] - z[:, 0]
+    det = dx1 * dy2 - dx2 * dy1
+    dzdx = (dz1 * dy2 - dz2 * dy1) / det
+    dzdy = (dx1 * dz2 - dx2 * dz1) / det
+    sx = pixel_x[:, None] + sample_positions[None, :, 0] - x[:, 0:1]
+    sy = pixel_y[:, None] + sample_positions[None, :, 1] - y[:, 0:1]
+    return z[:, 0:1] + dzdx[:, None] * sx + dzdy[:, None] * sy

@@ -2,7 +2,7 @@
 
 For every set-up triangle (see `softras.setup`), every sample of every pixel in
 its bounding box is tested against the three edge functions
-``E_i = A_i X + B_i Y + C_i`` in raster units: inside when every E_i > 0, or
+``E_i = A_i (X - X0_i) + B_i (Y - Y0_i)`` in raster units: inside when every E_i > 0, or
 E_i == 0 on an inclusive edge (the fill rule).  In gl precision the values
 are int64 and exact; in exact precision they are float64.
 
@@ -53,11 +53,16 @@ def _inside(e, inclusive):
     return e > 0 or (e == 0 and inclusive)
 
 
+@numba.njit(cache=True, inline="always")
+def _edge(a, b, x0, y0, x, y):
+    return a * (x - x0) + b * (y - y0)
+
+
 @numba.njit(cache=True)
-def _raster_triangle(a, b, c, inclusive, bbox, offsets, unit, out_x, out_y, out_mask, start, write):
+def _raster_triangle(a, b, x0, y0, inclusive, bbox, offsets, unit, out_x, out_y, out_mask, start, write):
     """Cover one triangle; write fragments from index `start` when `write`.
 
-    a, b, c : (3,) edge coefficients; inclusive : (3,) bool; bbox : (4,) int64.
+    a, b, x0, y0 : (3,) edge functions; inclusive : (3,) bool; bbox : (4,) int64.
     Returns the number of fragments.
     """
     n_samples = offsets.shape[0]
@@ -79,10 +84,10 @@ def _raster_triangle(a, b, c, inclusive, bbox, offsets, unit, out_x, out_y, out_
             outside = False
             all_in = True
             for i in range(3):
-                e00 = a[i] * x_lo + b[i] * y_lo + c[i]
-                e10 = a[i] * x_hi + b[i] * y_lo + c[i]
-                e01 = a[i] * x_lo + b[i] * y_hi + c[i]
-                e11 = a[i] * x_hi + b[i] * y_hi + c[i]
+                e00 = _edge(a[i], b[i], x0[i], y0[i], x_lo, y_lo)
+                e10 = _edge(a[i], b[i], x0[i], y0[i], x_hi, y_lo)
+                e01 = _edge(a[i], b[i], x0[i], y0[i], x_lo, y_hi)
+                e11 = _edge(a[i], b[i], x0[i], y0[i], x_hi, y_hi)
                 e_max = max(max(e00, e10), max(e01, e11))
                 e_min = min(min(e00, e10), min(e01, e11))
                 if not _inside(e_max, inclusive[i]):
@@ -101,9 +106,9 @@ def _raster_triangle(a, b, c, inclusive, bbox, offsets, unit, out_x, out_y, out_
                         for s in range(n_samples):
                             sx = px * unit + offsets[s, 0]
                             sy = py * unit + offsets[s, 1]
-                            if (_inside(a[0] * sx + b[0] * sy + c[0], inclusive[0])
-                                    and _inside(a[1] * sx + b[1] * sy + c[1], inclusive[1])
-                                    and _inside(a[2] * sx + b[2] * sy + c[2], inclusive[2])):
+                            if (_inside(_edge(a[0], b[0], x0[0], y0[0], sx, sy), inclusive[0])
+                                    and _inside(_edge(a[1], b[1], x0[1], y0[1], sx, sy), inclusive[1])
+                                    and _inside(_edge(a[2], b[2], x0[2], y0[2], sx, sy), inclusive[2])):
                                 mask |= np.uint32(1) << np.uint32(s)
                     if mask != 0:
                         if write:
@@ -115,22 +120,22 @@ def _raster_triangle(a, b, c, inclusive, bbox, offsets, unit, out_x, out_y, out_
 
 
 @numba.njit(cache=True, parallel=True)
-def _count(a, b, c, inclusive, bbox, offsets, unit):
+def _count(a, b, x0, y0, inclusive, bbox, offsets, unit):
     n = a.shape[0]
     counts = np.zeros(n, np.int64)
     dummy_i = np.zeros(0, np.int32)
     dummy_m = np.zeros(0, np.uint32)
     for t in numba.prange(n):
-        counts[t] = _raster_triangle(a[t], b[t], c[t], inclusive[t], bbox[t], offsets, unit,
+        counts[t] = _raster_triangle(a[t], b[t], x0[t], y0[t], inclusive[t], bbox[t], offsets, unit,
                                      dummy_i, dummy_i, dummy_m, 0, False)
     return counts
 
 
 @numba.njit(cache=True, parallel=True)
-def _emit(a, b, c, inclusive, bbox, offsets, unit, starts, out_x, out_y, out_mask, out_tri):
+def _emit(a, b, x0, y0, inclusive, bbox, offsets, unit, starts, out_x, out_y, out_mask, out_tri):
     n = a.shape[0]
     for t in numba.prange(n):
-        k = _raster_triangle(a[t], b[t], c[t], inclusive[t], bbox[t], offsets, unit,
+        k = _raster_triangle(a[t], b[t], x0[t], y0[t], inclusive[t], bbox[t], offsets, unit,
                              out_x, out_y, out_mask, starts[t], True)
         for j in range(starts[t], starts[t] + k):
             out_tri[j] = t
@@ -150,7 +155,8 @@ def rasterize(setup: TriangleSetup, offsets: np.ndarray, unit: float) -> Fragmen
     # Raster values are int64 (gl) or float64 (exact); offsets match them.
     dtype = setup.edge_a.dtype
     args = (np.ascontiguousarray(setup.edge_a), np.ascontiguousarray(setup.edge_b, dtype),
-            np.ascontiguousarray(setup.edge_c, dtype), np.ascontiguousarray(setup.edge_inclusive),
+            np.ascontiguousarray(setup.edge_x0, dtype), np.ascontiguousarray(setup.edge_y0, dtype),
+            np.ascontiguousarray(setup.edge_inclusive),
             np.ascontiguousarray(setup.bbox), np.ascontiguousarray(offsets, dtype),
             int(unit) if dtype.kind == "i" else float(unit))
     counts = _count(*args)

@@ -15,8 +15,8 @@ Raster coordinates are what the rasterizer's edge functions are evaluated in:
     float64 window coordinates, unsnapped.
 
 Edge i runs from vertex i to vertex i+1 of a counter-clockwise triangle (in
-GL's y-up window space); ``E_i(X, Y) = A_i X + B_i Y + C_i`` is positive on
-the inside.  A sample exactly on an edge (E_i == 0) belongs to the triangle
+GL's y-up window space); ``E_i(X, Y) = A_i (X - X0_i) + B_i (Y - Y0_i)`` is
+positive on the inside.  A sample exactly on an edge (E_i == 0) belongs to the triangle
 when the edge is a left edge (A_i > 0) or a bottom edge (A_i == 0, B_i > 0):
 the rule llvmpipe applies to GL framebuffers (its "top-left" rule in its
 y-down view of a framebuffer whose row 0 is GL's bottom row).
@@ -42,7 +42,8 @@ class TriangleSetup:
     window : (T', 3, 3) float64 unsnapped window coordinates (x_w, y_w, z_w).
     inv_w : (T', 3) float64 1 / w_clip per vertex.
     raster : (T', 3, 2) int64 (gl) or float64 (exact) raster coordinates.
-    edge_a, edge_b, edge_c : (T', 3) edge coefficients in raster units.
+    edge_a, edge_b, edge_x0, edge_y0 : (T', 3) edge functions in raster units,
+        ``E = A (X - X0) + B (Y - Y0)`` (see `edge_equations`).
     edge_inclusive : (T', 3) bool, fill rule per edge.
     bbox : (T', 4) int64 pixel bounds x0, x1, y0, y1 (inclusive, clamped).
     front_facing : (T',) bool (counter-clockwise in window space).
@@ -55,7 +56,8 @@ class TriangleSetup:
     raster: np.ndarray
     edge_a: np.ndarray
     edge_b: np.ndarray
-    edge_c: np.ndarray
+    edge_x0: np.ndarray
+    edge_y0: np.ndarray
     edge_inclusive: np.ndarray
     bbox: np.ndarray
     front_facing: np.ndarray
@@ -113,6 +115,26 @@ def sample_offsets(positions: np.ndarray, precision: str) -> tuple[np.ndarray, f
     return positions.astype(np.float64), 1.0
 
 
+def edge_equations(xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Edge functions of counter-clockwise triangles, (T, 3) raster x, y -> A, B, X0, Y0.
+
+    ``E_i(X, Y) = A_i (X - X0_i) + B_i (Y - Y0_i)`` for the edge from vertex
+    i to i+1, where (X0, Y0) is one of its endpoints.  Each edge is computed
+    from its endpoints in a canonical (lexicographic) order and then negated
+    if needed, so the two triangles sharing an edge get exactly opposite
+    values E at every sample even in float64, and E is exactly 0 at both
+    endpoints: no sample on a shared edge or vertex is lost or counted twice,
+    even where rounding decides it (the watertightness test).
+    """
+    nxt = [1, 2, 0]
+    x0, y0, x1, y1 = xs, ys, xs[:, nxt], ys[:, nxt]
+    swap = (x0 > x1) | ((x0 == x1) & (y0 > y1))
+    px, py = np.where(swap, x1, x0), np.where(swap, y1, y0)
+    qx, qy = np.where(swap, x0, x1), np.where(swap, y0, y1)
+    sign = np.where(swap, -1, 1).astype(xs.dtype)
+    return (py - qy) * sign, (qx - px) * sign, px, py
+
+
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str = "gl",
                     cull: str = "none", offsets: np.ndarray, unit: float,
                     generated: np.ndarray | None = None) -> TriangleSetup:
@@ -151,10 +173,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str
     raster = np.take_along_axis(raster[index], corner[..., None], axis=1)
 
     xs, ys = raster[..., 0], raster[..., 1]
-    nxt = [1, 2, 0]
-    a = ys - ys[:, nxt]
-    b = xs[:, nxt] - xs
-    c = -(a * xs + b * ys)
+    a, b, x0, y0 = edge_equations(xs, ys)
     inclusive = (a > 0) | ((a == 0) & (b > 0))
 
     bbox = np.stack([
@@ -180,7 +199,8 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str
         raster=raster[visible],
         edge_a=a[visible],
         edge_b=b[visible],
-        edge_c=c[visible],
+        edge_x0=x0[visible],
+        edge_y0=y0[visible],
         edge_inclusive=inclusive[visible],
         bbox=bbox[visible],
         front_facing=front[index][visible],

@@ -1,0 +1,75 @@
+"""Rasterize stage: coverage by hand, the fill rule, watertightness."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from softras import rasterize, setup
+
+
+def _cover(window_tris, width, height, precision="gl", positions=((0.5, 0.5),)):
+    """(T, 3, 2) window triangles -> (T, H, W) sample counts per pixel (y up)."""
+    offsets, unit = setup.sample_offsets(np.array(positions, float), precision)
+    tris = np.asarray(window_tris, float)
+    clip = np.zeros(tris.shape[:2] + (4,))
+    clip[..., 0] = tris[..., 0] / (width / 2) - 1
+    clip[..., 1] = tris[..., 1] / (height / 2) - 1
+    clip[..., 3] = 1
+    s = setup.setup_triangles(clip, width, height, precision=precision, offsets=offsets, unit=unit)
+    frags = rasterize.rasterize(s, offsets, unit)
+    counts = np.zeros((len(tris), height, width), int)
+    bits = np.array([bin(int(m)).count("1") for m in frags.mask], int)
+    np.add.at(counts, (s.triangle[frags.tri], frags.y, frags.x), bits)
+    return counts
+
+
+def test_half_square_by_hand():
+    # Triangle (0,0) (4,0) (0,4) covers the pixel centres (i+.5, j+.5) with
+    # i + j + 1 < 4, plus those exactly on the diagonal i + j + 1 == 4 - no:
+    # the diagonal is a top-right edge, exclusive.  So i + j <= 2: 6 pixels.
+    cover = _cover([[[0, 0], [4, 0], [0, 4]]], 4, 4)[0]
+    expected = np.array([[1 if i + j <= 2 else 0 for i in range(4)] for j in range(4)])
+    np.testing.assert_array_equal(cover, expected)
+
+
+def test_square_through_pixel_centres_owned_once():
+    # Square with corners on pixel centres: left and bottom rows belong to it,
+    # the right column and top row do not.
+    quad = [[[0.5, 0.5], [3.5, 0.5], [3.5, 3.5]], [[0.5, 0.5], [3.5, 3.5], [0.5, 3.5]]]
+    cover = _cover(quad, 5, 5).sum(axis=0)
+    expected = np.zeros((5, 5), int)
+    expected[0:3, 0:3] = 1
+    np.testing.assert_array_equal(cover, expected)
+
+
+def test_large_triangle_uses_block_early_in():
+    cover = _cover([[[-0.0, 0.0], [300.0, 0.0], [0.0, 300.0]]], 100, 100)[0]
+    assert cover.all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), precision=st.sampled_from(["gl", "exact"]),
+       msaa=st.booleans())
+def test_tessellated_mesh_covers_every_sample_exactly_once(seed, precision, msaa):
+    """Watertightness: a jittered grid mesh over the whole viewport covers each
+    sample exactly once, whatever the vertex positions and windings."""
+    rng = np.random.default_rng(seed)
+    width, height, n = 24, 20, 5
+    xs = np.linspace(-2, width + 2, n + 1)
+    ys = np.linspace(-2, height + 2, n + 1)
+    grid = np.stack(np.meshgrid(xs, ys), axis=-1)
+    grid[1:-1, 1:-1] += rng.uniform(-1.5, 1.5, size=(n - 1, n - 1, 2))
+    if rng.integers(2):   # snap some vertices onto pixel centres and corners
+        grid[1:-1, 1:-1] = np.round(grid[1:-1, 1:-1] * 2) / 2
+    tris = []
+    for j in range(n):
+        for i in range(n):
+            a, b, c, d = grid[j, i], grid[j, i + 1], grid[j + 1, i + 1], grid[j + 1, i]
+            first, second = ([a, b, c], [a, c, d]) if rng.integers(2) else ([a, b, d], [b, c, d])
+            if rng.integers(2):
+                first = first[::-1]   # clockwise: both windings must tile
+            tris += [first, second]
+    positions = ((0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875)) if msaa else ((0.5, 0.5),)
+    # The viewport is inside the mesh, so clipping never moves an edge here.
+    cover = _cover(np.array(tris), width, height, precision, positions).sum(axis=0)
+    np.testing.assert_array_equal(cover, len(positions))

@@ -1,0 +1,42 @@
+"""Every conformance scene through both renderers, compared with its tolerance.
+
+On failure the soft, gl and diff images are written under pytest's tmp_path
+(never into the source tree) and the path is in the failure message.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+import softras
+from conftest import SCENES, write_failure_images
+
+SCENE_FILES = sorted(p for p in SCENES.glob("*.json"))
+
+
+def test_there_are_scenes():
+    assert len(SCENE_FILES) >= 12
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("path", SCENE_FILES, ids=[p.stem for p in SCENE_FILES])
+def test_soft_matches_gl(path, tmp_path):
+    scene = softras.load_scene(path)
+    soft = softras.render(scene, precision="gl")
+    gl = softras.render(scene, backend="gl")
+    result = softras.compare(soft, gl, **scene.tolerance)
+    if not result.passed:
+        write_failure_images(tmp_path, soft=soft, gl=gl, diff=result.diff_image)
+        pytest.fail(f"{path.name}: {result.summary()} (images in {tmp_path})")
+    # The contract's skeleton bar, whatever a scene's own tolerance says.
+    assert result.ssim >= 0.99
+
+
+@pytest.mark.parametrize("path", SCENE_FILES, ids=[p.stem for p in SCENE_FILES])
+def test_exact_precision_close_to_gl_precision(path):
+    """exact (float64, no snapping) differs from gl only near edges and ties."""
+    scene = softras.load_scene(path)
+    gl = softras.render(scene, precision="gl")
+    exact = softras.render(scene, precision="exact")
+    result = softras.compare(gl, exact, threshold=2, max_bad_fraction=0.02, min_ssim=0.9)
+    assert result.passed, result.summary()
