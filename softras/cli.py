@@ -9,6 +9,7 @@
                     [--precision gl|exact] [--samples N] [tolerance options]
     softras demo [--scene SCENE.json] [--out-dir DIR] [--json] [--precision gl|exact]
     softras golden [--update] [--golden-dir DIR] [--out-dir DIR] [PATH ...]
+    softras bench [--runs N] [--max-triangles N] [--max-side N] [--json OUT.json]
 
 Exit status (DESIGN.md section 6): 0 success or comparison passed, 1 comparison
 failed, 2 bad input or environment error. On status 2 exactly one line,
@@ -428,6 +429,24 @@ def _add_tolerance_options(parser: argparse.ArgumentParser, defaults: str) -> No
                        help="smallest allowed mean SSIM (default 0.99)")
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    """``softras bench``: print speed and error figures (exit 0)."""
+    from softras import bench
+
+    if args.runs < 1 or args.max_triangles < 1000 or not 256 <= args.max_side <= 2048:
+        raise CLIError("bench: need --runs >= 1, --max-triangles >= 1000, 256 <= --max-side <= 2048")
+    if args.json_path:
+        from softras.imageio import check_writable
+        check_writable(args.json_path)
+    description = _gl_description()
+    if description is None:
+        raise CLIError("OpenGL unavailable: bench measures softras against glref")
+    print(f"glref: {description}")
+    bench.run(runs=args.runs, max_triangles=args.max_triangles, max_side=args.max_side,
+              out_json=args.json_path)
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``softras`` argument parser.
 
@@ -499,6 +518,21 @@ def build_parser() -> argparse.ArgumentParser:
                         help="verification: write golden, gl, soft and diff images of failed scenes "
                              "into DIR/<scene>/")
     golden.set_defaults(func=cmd_golden)
+
+    bench = commands.add_parser(
+        "bench", help="measure softras's quality levels against glref (time, ratio, error)",
+        description="Render generated benchmark scenes with glref and with each softras quality level "
+                    "in one process, warm, and print median times, ratios to glref, throughput and "
+                    "error against an exact 4x-MSAA ground truth, plus how cost grows.",
+    )
+    bench.add_argument("--runs", type=int, default=5, help="timed runs per figure (median; default 5)")
+    bench.add_argument("--max-triangles", type=int, default=100_000,
+                       help="largest triangle count of the scaling sweep (default 100000; up to 1M)")
+    bench.add_argument("--max-side", type=int, default=1024,
+                       help="largest image side of the scaling sweep (default 1024; up to 2048)")
+    bench.add_argument("--json", dest="json_path", default=None, metavar="OUT.json",
+                       help="also write the figures as JSON")
+    bench.set_defaults(func=cmd_bench)
     return parser
 
 

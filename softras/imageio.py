@@ -162,6 +162,17 @@ def write_png_atomic(path: str | os.PathLike, image: np.ndarray) -> None:
 
     path = check_writable(path)
     array = _check_image(path, image)
+    _write_atomic(path, lambda handle: Image.fromarray(array).save(handle, format="PNG"), "PNG")
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    """Write a UTF-8 text file atomically (same guarantees as `write_png_atomic`)."""
+    path = check_writable(path)
+    _write_atomic(path, lambda handle: handle.write(text.encode("utf-8")), "file")
+
+
+def _write_atomic(path: Path, write, what: str) -> None:
+    """Call ``write(binary_handle)`` on a temporary file, then rename it to ``path``."""
     folder = path.parent if str(path.parent) else Path(".")
     try:
         fd, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
@@ -169,7 +180,7 @@ def write_png_atomic(path: str | os.PathLike, image: np.ndarray) -> None:
         raise ImageError(f"{path}: cannot create a file in {folder}: {_one_line(error.strerror or error)}") from None
     try:
         with os.fdopen(fd, "wb") as handle:
-            Image.fromarray(array).save(handle, format="PNG")
+            write(handle)
             handle.flush()
             os.fsync(handle.fileno())
         # mkstemp creates the file with mode 0600; give it the usual mode.
@@ -183,5 +194,5 @@ def write_png_atomic(path: str | os.PathLike, image: np.ndarray) -> None:
         except FileNotFoundError:
             pass
         if isinstance(error, OSError):
-            raise ImageError(f"{path}: cannot write PNG: {_one_line(error.strerror or error)}") from None
+            raise ImageError(f"{path}: cannot write {what}: {_one_line(error.strerror or error)}") from None
         raise
