@@ -63,7 +63,7 @@ class ClippedTriangles:
     @property
     def generated(self) -> np.ndarray:
         """(T, 3) bool: vertices made by the clipper rather than passed through."""
-        return ~np.isclose(self.weights.max(axis=2), 1.0, rtol=0, atol=0)
+        return self.weights.max(axis=2) != 1.0
 
     def __len__(self) -> int:
         return len(self.source)
