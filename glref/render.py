@@ -64,14 +64,21 @@ def _blend_state(mgl, blend: str):
     return table[blend]
 
 
-def _shader_source(name: str, defines: tuple[str, ...]) -> str:
-    """Shader text with `#define NAME` lines inserted right after `#version`."""
-    text = resources.files("glref.shaders").joinpath(name).read_text(encoding="utf-8")
+def _shader_text(name: str) -> str:
+    return resources.files("glref.shaders").joinpath(name).read_text(encoding="utf-8")
+
+
+def _shader_source(name: str, defines: tuple[str, ...], prelude: str = "") -> str:
+    """Shader text with `#define` lines (and `prelude`, e.g. shared functions)
+    inserted right after `#version`.  A define "NAME=VALUE" becomes
+    `#define NAME VALUE`, a plain "NAME" `#define NAME 1`."""
+    text = _shader_text(name)
     first, _, rest = text.partition("\n")
     if not first.startswith("#version"):
         raise RuntimeError(f"glref: shader {name} must start with a #version line")
-    lines = "".join(f"#define {d} 1\n" for d in defines)
-    return f"{first}\n{lines}#line 2\n{rest}"
+    lines = "".join(f"#define {d.replace('=', ' ')}\n" if "=" in d else f"#define {d} 1\n"
+                    for d in defines)
+    return f"{first}\n{lines}{prelude}#line 2\n{rest}"
 
 
 def _reset_cache(ctx) -> None:
@@ -84,29 +91,103 @@ def _reset_cache(ctx) -> None:
 
 
 def _program(ctx, defines: tuple[str, ...]):
-    """The compiled program for a feature set (cached for the process's context)."""
+    """The compiled program for a feature set (cached for the process's context).
+
+    Unlit materials use unlit.vert/.frag; lit ones lit.vert/.frag with
+    lighting.glsl pasted in, and lit.geom.glsl for flat shading."""
     prog = _programs.get(defines)
     if prog is None:
-        vert, frag = (_shader_source(n, defines) for n in _SHADER_FILES)
-        prog = ctx.program(vertex_shader=vert, fragment_shader=frag)
+        if any(d.startswith("SHADING_") for d in defines):
+            prelude = _shader_text("lighting.glsl")
+            vert, frag = (_shader_source(n, defines, prelude) for n in ("lit.vert", "lit.frag"))
+            geom = (_shader_source("lit.geom.glsl", defines, prelude)
+                    if "SHADING_FLAT" in defines else None)
+            prog = ctx.program(vertex_shader=vert, fragment_shader=frag, geometry_shader=geom)
+        else:
+            vert, frag = (_shader_source(n, defines) for n in _SHADER_FILES)
+            prog = ctx.program(vertex_shader=vert, fragment_shader=frag)
         _programs[defines] = prog
     return prog
 
 
-def _features(draw) -> tuple[str, ...]:
-    """The sorted #defines a draw needs; raises for what glref cannot draw yet."""
+def _features(draw, n_lights: int) -> tuple[str, ...]:
+    """The sorted #defines a draw needs; raises for what glref cannot draw."""
     mat = draw.material
-    if getattr(mat, "texture", None) is not None:
-        raise NotImplementedError(
-            f"glref: {draw.path}: textured materials are not supported by glref yet")
-    if getattr(mat, "shading", "unlit") != "unlit":
-        raise NotImplementedError(
-            f"glref: {draw.path}: shading {mat.shading!r} is not supported by glref yet "
-            "(only 'unlit')")
     defines = []
+    if mat.shading != "unlit":
+        if draw.mesh.primitive != "triangles":
+            raise NotImplementedError(f"glref: {draw.path}: lit {draw.mesh.primitive} are not supported")
+        defines.append(f"SHADING_{mat.shading.upper()}")
+        # No lights: one black light keeps the shader valid (ambient only).
+        defines.append(f"NUM_LIGHTS={max(1, n_lights)}")
     if draw.mesh.colors is not None:
         defines.append("HAS_COLOR")
+    if mat.texture is not None:
+        defines.append("HAS_TEXTURE")
     return tuple(sorted(defines))
+
+
+# GL enums for the sampler state (glTextureParameteri).
+_GL_TEXTURE_MAG_FILTER = 0x2800
+_GL_TEXTURE_MIN_FILTER = 0x2801
+_GL_TEXTURE_WRAP_S = 0x2802
+_GL_TEXTURE_WRAP_T = 0x2803
+_GL_TEXTURE_BASE_LEVEL = 0x813C
+_GL_TEXTURE_MAX_LEVEL = 0x813D
+_GL_TEXTURE_MAX_ANISOTROPY = 0x84FE
+_GL_WRAP = {"repeat": 0x2901, "clamp_to_edge": 0x812F, "mirrored_repeat": 0x8370}
+_GL_FILTER = {"nearest": 0x2600, "linear": 0x2601,
+              "nearest_mipmap_nearest": 0x2700, "linear_mipmap_nearest": 0x2701,
+              "nearest_mipmap_linear": 0x2702, "linear_mipmap_linear": 0x2703}
+_gl_functions: dict = {}
+
+
+def _gl_function(name: str, *argtypes):
+    """A GL entry point through eglGetProcAddress (moderngl exposes no
+    GL_MIRRORED_REPEAT and no GL_TEXTURE_MAX_LEVEL setter)."""
+    fn = _gl_functions.get(name)
+    if fn is None:
+        import ctypes
+        egl = ctypes.CDLL("libEGL.so.1")
+        egl.eglGetProcAddress.restype = ctypes.c_void_p
+        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        address = egl.eglGetProcAddress(name.encode())
+        if not address:
+            raise RuntimeError(f"glref: no GL entry point {name}")
+        fn = ctypes.CFUNCTYPE(None, *argtypes)(address)
+        _gl_functions[name] = fn
+    return fn
+
+
+def _upload_texture(ctx, texture):
+    """A GL texture holding exactly softras's texels and sampler state.
+
+    Every level comes from `softras.texture.prepare` (premultiplied RGBA8,
+    mip chain computed once there) and is uploaded explicitly, so both
+    renderers filter identical texels; image row 0 (t = 0) is the first row
+    uploaded, which is GL's t = 0 too.
+    """
+    import ctypes
+    from softras import texture as softras_texture
+
+    ready = softras_texture.prepare(texture)
+    levels = ready.used_levels
+    height, width = levels[0].shape[:2]
+    tex = ctx.texture((width, height), 4, np.ascontiguousarray(levels[0]).tobytes(), alignment=1)
+    parami = _gl_function("glTextureParameteri", ctypes.c_uint, ctypes.c_uint, ctypes.c_int)
+    paramf = _gl_function("glTextureParameterf", ctypes.c_uint, ctypes.c_uint, ctypes.c_float)
+    if len(levels) > 1:
+        tex.build_mipmaps(0, len(levels) - 1)     # allocates the levels; overwritten next
+        for i, level in enumerate(levels[1:], start=1):
+            tex.write(np.ascontiguousarray(level).tobytes(), level=i, alignment=1)
+    parami(tex.glo, _GL_TEXTURE_BASE_LEVEL, 0)
+    parami(tex.glo, _GL_TEXTURE_MAX_LEVEL, len(levels) - 1)
+    parami(tex.glo, _GL_TEXTURE_MIN_FILTER, _GL_FILTER[ready.min_filter])
+    parami(tex.glo, _GL_TEXTURE_MAG_FILTER, _GL_FILTER[ready.mag_filter])
+    parami(tex.glo, _GL_TEXTURE_WRAP_S, _GL_WRAP[ready.wrap_s])
+    parami(tex.glo, _GL_TEXTURE_WRAP_T, _GL_WRAP[ready.wrap_t])
+    paramf(tex.glo, _GL_TEXTURE_MAX_ANISOTROPY, float(ready.max_anisotropy))
+    return tex
 
 
 def _drain_errors(ctx) -> None:
@@ -143,7 +224,7 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
     msaa = 0 if n_samples == 1 else n_samples
     size = (width, height)
 
-    features = [_features(d) for d in scene.draws]  # fail before touching GL
+    features = [_features(d, len(scene.lights)) for d in scene.draws]  # fail before touching GL
     proj_view = np.asarray(scene.camera.projection, np.float64) @ np.asarray(
         scene.camera.view, np.float64)
 
@@ -189,6 +270,17 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
             if "HAS_COLOR" in defines:
                 content.append((own(ctx.buffer(np.ascontiguousarray(mesh.colors, np.float32))),
                                 "4f", "in_color"))
+            if any(d.startswith("SHADING_") for d in defines):
+                _set_lighting(prog, scene, draw)
+                if "SHADING_FLAT" not in defines:
+                    content.append((own(ctx.buffer(np.ascontiguousarray(mesh.normals, np.float32))),
+                                    "3f", "in_normal"))
+            if "HAS_TEXTURE" in defines:
+                content.append((own(ctx.buffer(np.ascontiguousarray(mesh.uvs, np.float32))),
+                                "2f", "in_uv"))
+                tex = own(_upload_texture(ctx, scene.textures[draw.material.texture]))
+                tex.use(0)
+                prog["u_texture"].value = 0
             ibo = own(ctx.buffer(indices))
             vao = own(ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=4))
 
@@ -215,6 +307,34 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
 
     image = np.frombuffer(data, dtype=np.uint8).reshape(height, width, 4)
     return np.ascontiguousarray(image[::-1])  # GL row 0 is the bottom
+
+
+def _write_matrix(uniform, matrix: np.ndarray) -> None:
+    """Upload a float64 matrix to a GLSL matN (column-major)."""
+    uniform.write(np.ascontiguousarray(np.asarray(matrix, np.float64).astype(np.float32).T).tobytes())
+
+
+def _set_lighting(prog, scene, draw) -> None:
+    """Uniforms of lighting.glsl and lit.vert (world space, float64 on the CPU)."""
+    world = np.asarray(draw.world, np.float64)
+    _write_matrix(prog["u_world"], world)
+    if "u_normal_matrix" in prog:
+        _write_matrix(prog["u_normal_matrix"], np.linalg.inv(world[:3, :3]).T)
+    eye = np.linalg.inv(np.asarray(scene.camera.view, np.float64))[:3, 3]
+    prog["u_eye"].value = tuple(float(v) for v in eye)
+    lights = np.zeros((max(1, len(scene.lights)), 4), np.float32)
+    colors = np.zeros((len(lights), 3), np.float32)
+    for i, light in enumerate(scene.lights):
+        if light.type == "point":
+            lights[i] = (*light.position, 1.0)
+        else:
+            lights[i] = (*(-np.asarray(light.direction)), 0.0)
+        colors[i] = light.color
+    prog["u_light"].write(lights.tobytes())
+    prog["u_light_color"].write(colors.tobytes())
+    mat = draw.material
+    for name in ("ambient", "diffuse", "specular", "shininess"):
+        prog[f"u_{name}"].value = float(getattr(mat, name))
 
 
 def _apply_state(ctx, mgl, fbo, draw) -> None:

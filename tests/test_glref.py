@@ -295,12 +295,15 @@ def test_many_renders_stay_clean():
 
 def test_unsupported_material_raises_before_rendering():
     draw = make_scene(2, 2, [node(quad(0, 0, 2, 2))]).draws[0]
-    fields = ("path", "name", "world", "mesh", "depth_test", "depth_write", "cull", "blend")
-    textured = SimpleNamespace(**{f: getattr(draw, f) for f in fields},
-                               material=SimpleNamespace(color=np.ones(4), texture="checker",
-                                                        shading="unlit"))
+    fields = ("path", "name", "world", "depth_test", "depth_write", "cull", "blend")
+    lit_lines = SimpleNamespace(**{f: getattr(draw, f) for f in fields},
+                                mesh=SimpleNamespace(primitive="lines", colors=None,
+                                                     positions=draw.mesh.positions,
+                                                     indices=np.array([[0, 1]])),
+                                material=SimpleNamespace(color=np.ones(4), texture=None,
+                                                         shading="flat"))
     fake = SimpleNamespace(width=2, height=2, background=np.array([0, 0, 0, 1.0]), samples=1,
                            camera=SimpleNamespace(view=np.eye(4), projection=np.eye(4)),
-                           draws=(textured,), source="<test>")
-    with pytest.raises(NotImplementedError, match="texture"):
+                           lights=(), draws=(lit_lines,), source="<test>")
+    with pytest.raises(NotImplementedError, match="lit lines"):
         glref.render(fake)

@@ -1,0 +1,459 @@
+"""Textures: texels, mip chains and the full texture sampling operation.
+
+The lecture's sampling operation, one readable function per step::
+
+    uv ──► derivatives ──► level of detail ──► mip level(s) ──► texel addresses
+       ──► filter weights ──► texel fetch and blend ──► premultiplied RGBA
+
+Texel data (shared with glref, which uploads exactly these bytes)
+-----------------------------------------------------------------
+- :func:`source_texels` reads a PNG through Pillow, or generates a procedural
+  texture (checker, gradient, noise), as straight RGBA8, row 0 = the top of the
+  image = v 0 (DESIGN.md section 3).
+- :func:`premultiply_rgba8` premultiplies at load (before mip generation):
+  ``c' = round(c * a / 255)``.
+- :func:`mip_chain` builds the levels as glGenerateMipmap would: level sizes
+  ``max(1, floor(size / 2))`` down to 1x1 (non-power-of-two too), each texel
+  the rounded mean of a 2x2 box of the level above (2x1 or 1x1 where the level
+  above is one texel thin).  With an odd size the last row or column of the
+  level above has no box and is skipped: that is what a 2x2 box with
+  ``floor(size / 2)`` means.
+- :func:`prepare` does all three once per scene texture (cached) and returns a
+  :class:`MipTexture`: the levels as ``(H_l, W_l, 4) uint8`` premultiplied
+  arrays plus the sampler state.  glref uploads every level of it explicitly,
+  so both renderers filter identical texels.
+
+Sampling (:func:`sample`)
+-------------------------
+Coordinates: texel (i, j) of a level of size W x H has its centre at
+``((i + 0.5) / W, (j + 0.5) / H)``; ``u = s W`` and ``v = t H`` are texel-space
+coordinates.
+
+``precision="exact"`` follows the GL 4.5 specification (section 8.14) in
+float64: analytic derivatives per sample, ``rho = max(|d(u,v)/dx|,
+|d(u,v)/dy|)``, ``lambda = log2 rho``, magnification when ``lambda <= 0``
+(c = 0), mipmap_nearest level ``ceil(lambda + 1/2) - 1``, mipmap_linear
+levels ``floor(lambda)`` and ``floor(lambda) + 1`` blended by the fraction,
+bilinear weights in float.
+
+``precision="gl"`` reproduces what Mesa llvmpipe (gallivm, default
+``GALLIVM_PERF``) computes, found in its source (lp_bld_sample.c,
+lp_bld_sample_aos.c) and checked against it by experiment:
+
+- derivatives per 2x2 quad (quads at even window x, y): ``ddx = TR - TL``,
+  ``ddy = BL - TL`` of the interpolated (s, t), helper pixels included; one
+  LOD per quad;
+- ``rho^2 = max(ddx_s^2 W^2 + ddx_t^2 H^2, ddy_s^2 W^2 + ddy_t^2 H^2)`` in
+  float32 (no square root: ``no_rho_approx`` is the default);
+- mipmap_nearest: level ``(exponent(rho^2) + 1) >> 1`` = round(log2 rho),
+  halves rounding up; mipmap_linear: ``lambda = 0.5 * fast_log2(rho^2)`` where
+  ``fast_log2`` is llvmpipe's *piecewise-linear* log2 (exact at powers of two,
+  up to 0.086 low between them), then floor and fraction;
+- magnification when ``rho^2 <= 1``;
+- for RGBA8 textures with repeat / clamp_to_edge wrapping llvmpipe filters in
+  8.8 fixed point ("AoS sampling"): texel coordinates rounded to 1/256 texel,
+  bilinear and mip blends as ``a + ((w (b - a) + 128) >> 8)`` on bytes (each
+  lerp rounded to a byte), the mip weight truncated to ``floor(frac * 256)``;
+  mirrored_repeat goes through the float ("SoA") path instead.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import Texture
+
+MIPMAP_FILTERS = ("nearest_mipmap_nearest", "linear_mipmap_nearest",
+                  "nearest_mipmap_linear", "linear_mipmap_linear")
+
+# ----------------------------------------------------------------------------- texels
+
+
+def source_texels(texture: Texture) -> np.ndarray:
+    """Level 0 of a scene texture as straight RGBA: (H, W, 4) uint8, row 0 = v 0."""
+    if texture.image is not None:
+        return load_image(texture.image)
+    return procedural_texels(texture.procedural, texture.size, texture.params)
+
+
+def load_image(path: str) -> np.ndarray:
+    """A picture file (PNG, anything Pillow reads) -> (H, W, 4) uint8 straight RGBA.
+
+    Row 0 is the top row of the file, which is texture row t = 0.
+    """
+    from PIL import Image
+    with Image.open(path) as image:
+        return np.ascontiguousarray(np.asarray(image.convert("RGBA"), dtype=np.uint8))
+
+
+def _rgba8(color) -> np.ndarray:
+    """(4,) float colour in [0, 1] -> (4,) uint8, round(c * 255)."""
+    return np.rint(np.asarray(color, np.float64) * 255.0).astype(np.uint8)
+
+
+def procedural_texels(kind: str, size: tuple[int, int], params: dict) -> np.ndarray:
+    """Generate a procedural texture: (H, W, 4) uint8 straight RGBA, row 0 = v 0.
+
+    checker : ``squares`` x ``squares`` cells; texel (i, j) is in cell
+        (i * squares // W, j * squares // H) and has ``color0`` where the cell
+        indices sum to an even number, ``color1`` elsewhere (so the top-left
+        cell is color0).
+    gradient : ``color0`` to ``color1`` across the width ("horizontal", left to
+        right) or height ("vertical", top to bottom), sampled at texel centres:
+        ``mix(color0, color1, (i + 0.5) / W)``, rounded to bytes.
+    noise : white noise, RGB uniform in 0..255 from ``numpy.random.default_rng(seed)``,
+        alpha 255.
+    """
+    width, height = int(size[0]), int(size[1])
+    if kind == "checker":
+        squares = int(params["squares"])
+        ci = (np.arange(width) * squares) // width
+        cj = (np.arange(height) * squares) // height
+        odd = ((cj[:, None] + ci[None, :]) % 2).astype(bool)
+        out = np.where(odd[..., None], _rgba8(params["color1"]), _rgba8(params["color0"]))
+        return np.ascontiguousarray(out.astype(np.uint8))
+    if kind == "gradient":
+        c0 = np.asarray(params["color0"], np.float64)
+        c1 = np.asarray(params["color1"], np.float64)
+        if params["direction"] == "horizontal":
+            f = (np.arange(width) + 0.5) / width
+            row = c0 + f[:, None] * (c1 - c0)                      # (W, 4)
+            out = np.broadcast_to(row[None], (height, width, 4))
+        else:
+            f = (np.arange(height) + 0.5) / height
+            col = c0 + f[:, None] * (c1 - c0)                      # (H, 4)
+            out = np.broadcast_to(col[:, None], (height, width, 4))
+        return np.ascontiguousarray(np.rint(out * 255.0).astype(np.uint8))
+    if kind == "noise":
+        rng = np.random.default_rng(int(params["seed"]))
+        out = np.empty((height, width, 4), np.uint8)
+        out[..., :3] = rng.integers(0, 256, size=(height, width, 3), dtype=np.uint8)
+        out[..., 3] = 255
+        return out
+    raise ValueError(f"unknown procedural texture {kind!r}")
+
+
+def premultiply_rgba8(straight: np.ndarray) -> np.ndarray:
+    """Straight (..., 4) uint8 RGBA -> premultiplied uint8, ``round(c * a / 255)``."""
+    s = straight.astype(np.int32)
+    out = s.copy()
+    out[..., :3] = (s[..., :3] * s[..., 3:4] * 2 + 255) // 510      # round half up
+    return out.astype(np.uint8)
+
+
+def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
+    """(width, height) of every level, ``max(1, floor(size / 2))`` down to 1x1.
+
+    >>> mip_sizes(5, 3)
+    [(5, 3), (2, 1), (1, 1)]
+    """
+    sizes = [(int(width), int(height))]
+    while sizes[-1] != (1, 1):
+        w, h = sizes[-1]
+        sizes.append((max(1, w // 2), max(1, h // 2)))
+    return sizes
+
+
+def downsample(level: np.ndarray) -> np.ndarray:
+    """The next mip level: 2x2 box (2x1 / 1x2 where the level is one texel thin),
+    rounded to nearest (halves up).  (H, W, C) uint8 -> uint8."""
+    h, w = level.shape[:2]
+    nh, nw = max(1, h // 2), max(1, w // 2)
+    x = level.astype(np.int32)
+    fy = 2 if h > 1 else 1
+    fx = 2 if w > 1 else 1
+    x = x[:nh * fy, :nw * fx]
+    total = x.reshape(nh, fy, nw, fx, -1).sum(axis=(1, 3))
+    n = fy * fx
+    return ((total + n // 2) // n).astype(np.uint8)
+
+
+def mip_chain(level0: np.ndarray) -> tuple[np.ndarray, ...]:
+    """All levels from level 0 down to 1x1 (see :func:`downsample`)."""
+    levels = [np.ascontiguousarray(level0)]
+    while levels[-1].shape[:2] != (1, 1):
+        levels.append(downsample(levels[-1]))
+    return tuple(levels)
+
+
+@dataclass(frozen=True, eq=False)
+class MipTexture:
+    """A texture ready to sample: premultiplied RGBA8 levels and the sampler state.
+
+    levels : (H_l, W_l, 4) uint8 premultiplied, row 0 = v 0; the full chain
+        down to 1x1 (only level 0 is used unless the min filter is a mipmap one).
+    """
+
+    name: str
+    levels: tuple
+    wrap_s: str
+    wrap_t: str
+    min_filter: str
+    mag_filter: str
+    max_anisotropy: float
+
+    @property
+    def mipmapped(self) -> bool:
+        return self.min_filter in MIPMAP_FILTERS
+
+    @property
+    def used_levels(self) -> tuple:
+        """The levels a sampler can reach (what glref uploads)."""
+        return self.levels if self.mipmapped else self.levels[:1]
+
+    @property
+    def size(self) -> tuple[int, int]:
+        h, w = self.levels[0].shape[:2]
+        return w, h
+
+
+_cache: "weakref.WeakKeyDictionary[Texture, MipTexture]" = weakref.WeakKeyDictionary()
+
+
+def prepare(texture: Texture) -> MipTexture:
+    """Load, premultiply and mip a scene texture (cached per Texture object)."""
+    ready = _cache.get(texture)
+    if ready is None:
+        level0 = premultiply_rgba8(source_texels(texture))
+        ready = MipTexture(texture.name, mip_chain(level0), texture.wrap_s, texture.wrap_t,
+                           texture.min_filter, texture.mag_filter, texture.max_anisotropy)
+        _cache[texture] = ready
+    return ready
+
+
+# ----------------------------------------------------------------------------- wrap
+
+
+def wrap(i: np.ndarray, size: int, mode: str) -> np.ndarray:
+    """Integer texel index -> index inside [0, size) (GL 4.5 section 8.14.2).
+
+    repeat : i mod size.  clamp_to_edge : clamp to [0, size - 1].
+    mirrored_repeat : the texture mirrored every other period,
+    ``m = i mod 2 size; m if m < size else 2 size - 1 - m``.
+    """
+    if mode == "repeat":
+        return np.mod(i, size)
+    if mode == "clamp_to_edge":
+        return np.clip(i, 0, size - 1)
+    if mode == "mirrored_repeat":
+        m = np.mod(i, 2 * size)
+        return np.where(m < size, m, 2 * size - 1 - m)
+    raise ValueError(f"unknown wrap mode {mode!r}")
+
+
+# ----------------------------------------------------------------------------- derivatives and LOD
+
+
+def texel_derivatives(ddx: np.ndarray, ddy: np.ndarray, size: tuple[int, int], gl: bool):
+    """(N, 2) derivatives of (s, t) -> (N, 2) derivatives of (u, v) = (s W, t H), in texels."""
+    scale = np.array(size, np.float64)
+    if gl:
+        scale32 = scale.astype(np.float32)
+        return (ddx.astype(np.float32) * scale32, ddy.astype(np.float32) * scale32)
+    return ddx * scale, ddy * scale
+
+
+def rho_squared(du: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """rho^2 = max(|du|^2, |dv|^2) for texel-space derivative vectors du = d(u,v)/dx,
+    dv = d(u,v)/dy, (N, 2) each; computed in the arrays' dtype."""
+    x = du[:, 0] * du[:, 0] + du[:, 1] * du[:, 1]
+    y = dv[:, 0] * dv[:, 0] + dv[:, 1] * dv[:, 1]
+    return np.maximum(x, y)
+
+
+def fast_log2(x: np.ndarray) -> np.ndarray:
+    """llvmpipe's lp_build_fast_log2: ``exponent + mantissa - 1`` for
+    x = mantissa * 2^exponent, mantissa in [1, 2) — piecewise linear, exact at
+    powers of two.  float32 in, float32 out."""
+    m, e = np.frexp(x.astype(np.float32))         # x = m 2^e, m in [0.5, 1)
+    return ((e - 1).astype(np.float32) + (np.float32(2) * m - np.float32(1))).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class LevelChoice:
+    """Per fragment: which level(s) to sample and how.
+
+    magnified : (N,) bool, use the mag filter on level 0.
+    level0, level1 : (N,) int64 levels (equal when there is nothing to blend).
+    frac : (N,) float64 blend weight of level1 in [0, 1).
+    """
+
+    magnified: np.ndarray
+    level0: np.ndarray
+    level1: np.ndarray
+    frac: np.ndarray
+
+
+def choose_levels(rho2: np.ndarray, min_filter: str, n_levels: int, gl: bool) -> LevelChoice:
+    """Level of detail -> mip level(s), from rho^2 (N,) in texels^2.
+
+    gl: llvmpipe's arithmetic (see the module docstring); exact: GL 4.5
+    equations 8.x with lambda = log2(rho) = 0.5 log2(rho^2), c = 0.
+    """
+    last = n_levels - 1
+    n = len(rho2)
+    zeros = np.zeros(n, np.int64)
+    magnified = ~(rho2 > 1)                       # lambda <= 0 (NaN: magnified)
+    if min_filter not in MIPMAP_FILTERS:
+        return LevelChoice(magnified, zeros, zeros, np.zeros(n))
+    mip_nearest = min_filter.endswith("mipmap_nearest")
+    if gl:
+        r = rho2.astype(np.float32)
+        if mip_nearest:
+            _, e = np.frexp(r)                    # exponent(r) + 1 == e
+            level = np.right_shift(e.astype(np.int64), 1)
+            level = np.where(r > 0, level, 0)
+            level = np.clip(level, 0, last)
+            return LevelChoice(magnified, level, level, np.zeros(n))
+        lod = (np.float32(0.5) * fast_log2(np.maximum(r, np.float32(np.finfo(np.float32).tiny))))
+        ipart = np.floor(lod)
+        frac = (lod - ipart).astype(np.float64)
+        ipart = ipart.astype(np.int64)
+    else:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lod = 0.5 * np.log2(rho2)
+        lod = np.nan_to_num(lod, nan=-np.inf)
+        if mip_nearest:
+            # GL: d = ceil(lambda + 1/2) - 1 for lambda > 1/2, else 0 (halves round down).
+            level = np.where(lod > 0.5, np.ceil(lod + 0.5) - 1, 0)
+            level = np.clip(np.nan_to_num(level, posinf=last), 0, last).astype(np.int64)
+            return LevelChoice(magnified, level, level, np.zeros(n))
+        finite = np.isfinite(lod)
+        ipart = np.where(finite, np.floor(np.where(finite, lod, 0)), np.where(lod > 0, last, -1))
+        frac = np.where(finite, lod - np.floor(np.where(finite, lod, 0)), 0.0)
+        ipart = ipart.astype(np.int64)
+    below = ipart < 0
+    above = ipart >= last
+    level0 = np.clip(ipart, 0, last)
+    level1 = np.clip(ipart + 1, 0, last)
+    frac = np.where(below | above, 0.0, frac)
+    return LevelChoice(magnified, level0, level1, frac)
+
+
+# ----------------------------------------------------------------------------- filters on one level
+
+
+def nearest_addresses(s: np.ndarray, size: int, mode: str, gl: bool) -> np.ndarray:
+    """Nearest filter: texel index ``wrap(floor(s * size))`` per coordinate, (N,) int64."""
+    if gl:
+        u = s.astype(np.float32) * np.float32(size)
+        return wrap(np.floor(u).astype(np.int64), size, mode)
+    return wrap(np.floor(s * size).astype(np.int64), size, mode)
+
+
+def linear_addresses(s: np.ndarray, size: int, mode: str, fixed8: bool):
+    """Linear filter along one axis: (i0, i1, weight of i1).
+
+    Float (GL spec): ``u = s size - 1/2``, i0 = floor(u), weight = frac(u).
+    fixed8 (llvmpipe AoS): ``round(s * size * 256) - 128`` in 8.8 fixed
+    point, i0 = that >> 8, weight = (that & 255) as an integer 0..255.
+    """
+    if not fixed8:
+        u = s * size - 0.5
+        i0 = np.floor(u)
+        return wrap(i0.astype(np.int64), size, mode), wrap(i0.astype(np.int64) + 1, size, mode), u - i0
+    s32 = s.astype(np.float32)
+    pot = size & (size - 1) == 0
+    if mode == "repeat" and not pot:
+        f = s32 - np.floor(s32)
+        fixed = np.rint((f * np.float32(size)).astype(np.float32) * np.float32(256)).astype(np.int64) - 128
+        weight = fixed & 255
+        i0 = fixed >> 8
+        i0 = np.where(i0 < 0, size - 1, i0)
+        i0 = np.minimum(i0, size - 1)
+        i1 = np.where(i0 != size - 1, i0 + 1, 0)
+        return i0, i1, weight
+    fixed = np.rint((s32 * np.float32(size * 256)).astype(np.float32)).astype(np.int64) - 128
+    weight = fixed & 255
+    i0 = fixed >> 8
+    return wrap(i0, size, mode), wrap(i0 + 1, size, mode), weight
+
+
+def lerp8(weight: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """llvmpipe's 8-bit lerp: ``a + ((w (b - a) + 128) >> 8)``, w in 0..255,
+    a and b bytes (as int64).  (pmulhrsw of w and (b - a) << 7.)"""
+    return a + ((weight * (b - a) + 128) >> 8)
+
+
+def filter_level(level: np.ndarray, s: np.ndarray, t: np.ndarray, image_filter: str,
+                 wrap_s: str, wrap_t: str, gl: bool, fixed8: bool) -> np.ndarray:
+    """Filter one mip level at (s, t): (N,) each -> (N, 4) texel values on the
+    0..255 scale (integers in fixed8 mode, floats otherwise)."""
+    h, w = level.shape[:2]
+    if image_filter == "nearest":
+        i = nearest_addresses(s, w, wrap_s, gl)
+        j = nearest_addresses(t, h, wrap_t, gl)
+        return level[j, i].astype(np.int64 if fixed8 else np.float64)
+    i0, i1, a = linear_addresses(s, w, wrap_s, fixed8)
+    j0, j1, b = linear_addresses(t, h, wrap_t, fixed8)
+    if fixed8:
+        t00, t10 = level[j0, i0].astype(np.int64), level[j0, i1].astype(np.int64)
+        t01, t11 = level[j1, i0].astype(np.int64), level[j1, i1].astype(np.int64)
+        a, b = a[:, None], b[:, None]
+        return lerp8(b, lerp8(a, t00, t10), lerp8(a, t01, t11))
+    t00, t10 = level[j0, i0].astype(np.float64), level[j0, i1].astype(np.float64)
+    t01, t11 = level[j1, i0].astype(np.float64), level[j1, i1].astype(np.float64)
+    a, b = a[:, None], b[:, None]
+    return (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11
+
+
+def uses_fixed_point(texture: MipTexture, gl: bool) -> bool:
+    """Whether llvmpipe filters this texture in 8.8 fixed point (its AoS path):
+    RGBA8 with repeat / clamp_to_edge on both axes and no anisotropy."""
+    simple = ("repeat", "clamp_to_edge")
+    return gl and texture.wrap_s in simple and texture.wrap_t in simple and texture.max_anisotropy <= 1
+
+
+# ----------------------------------------------------------------------------- the whole operation
+
+
+def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray,
+           precision: str = "gl") -> np.ndarray:
+    """The full texture sampling operation.
+
+    st : (N, 2) texture coordinates (s, t) at the sample.
+    ddx, ddy : (N, 2) their screen-space derivatives d(s,t)/dx and d(s,t)/dy
+        (per quad in gl precision, analytic in exact).
+    Returns (N, 4) float64 premultiplied RGBA in [0, 1].
+    """
+    gl = precision == "gl"
+    if texture.max_anisotropy > 1:
+        raise NotImplementedError(f"texture {texture.name!r}: anisotropic filtering is not implemented")
+    n = len(st)
+    if n == 0:
+        return np.zeros((0, 4))
+    du, dv = texel_derivatives(ddx, ddy, texture.size, gl)
+    rho2 = rho_squared(du, dv)
+    levels = texture.used_levels
+    choice = choose_levels(rho2, texture.min_filter, len(levels), gl)
+    fixed8 = uses_fixed_point(texture, gl)
+    min_image = texture.min_filter.split("_")[0]          # "nearest" or "linear"
+    s, t = st[:, 0], st[:, 1]
+
+    def filtered(level_index: np.ndarray) -> np.ndarray:
+        out = np.zeros((n, 4), np.int64 if fixed8 else np.float64)
+        filters = np.where(choice.magnified, texture.mag_filter, min_image)
+        for lvl in np.unique(level_index):
+            for image_filter in ("nearest", "linear"):
+                idx = np.nonzero((level_index == lvl) & (filters == image_filter))[0]
+                if len(idx):
+                    out[idx] = filter_level(levels[lvl], s[idx], t[idx], image_filter,
+                                            texture.wrap_s, texture.wrap_t, gl, fixed8)
+        return out
+
+    level0 = np.where(choice.magnified, 0, choice.level0)
+    c0 = filtered(level0)
+    blend = ~choice.magnified & (choice.level1 != choice.level0) & (choice.frac > 0)
+    if np.any(blend):
+        level1 = np.where(blend, choice.level1, level0)
+        c1 = filtered(level1)
+        if fixed8:
+            w8 = np.floor(choice.frac * 256).astype(np.int64)[:, None]
+            c0 = np.where(blend[:, None], lerp8(w8, c0, c1), c0)
+        else:
+            f = np.where(blend, choice.frac, 0.0)[:, None]
+            c0 = c0 + f * (c1 - c0)
+    return c0.astype(np.float64) / 255.0
