@@ -38,5 +38,11 @@ def test_exact_precision_close_to_gl_precision(path):
     scene = softras.load_scene(path)
     gl = softras.render(scene, precision="gl")
     exact = softras.render(scene, precision="exact")
-    result = softras.compare(gl, exact, threshold=2, max_bad_fraction=0.02, min_ssim=0.9)
+    threshold = 2
+    if any(t.min_filter.endswith("mipmap_linear") for t in scene.textures.values()):
+        # gl reproduces llvmpipe's piecewise-linear log2 (the trilinear blend
+        # weight up to 0.043 off the spec's) and its 8-bit weights; exact
+        # follows the spec: up to ~11/255 apart on high-contrast checkers.
+        threshold = 12
+    result = softras.compare(gl, exact, threshold=threshold, max_bad_fraction=0.02, min_ssim=0.9)
     assert result.passed, result.summary()
