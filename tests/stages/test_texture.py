@@ -1,0 +1,231 @@
+"""Texture stage: texels, mip chains, wrap, LOD and filter weights (softras.texture).
+
+Hand-computed values; the comparison with OpenGL is in tests/test_texture_gl.py.
+"""
+
+import numpy as np
+import pytest
+
+from softras import pipeline, setup, texture
+
+
+# --------------------------------------------------------------------------- texels and mips
+
+
+def test_premultiply_rounds_to_nearest():
+    straight = np.array([[255, 128, 0, 128], [10, 20, 30, 255], [200, 200, 200, 0]], np.uint8)
+    # 255*128/255 = 128; 128*128/255 = 64.25 -> 64; alpha 255 keeps rgb; alpha 0 clears it.
+    np.testing.assert_array_equal(texture.premultiply_rgba8(straight),
+                                  [[128, 64, 0, 128], [10, 20, 30, 255], [0, 0, 0, 0]])
+
+
+def test_mip_sizes_npot():
+    assert texture.mip_sizes(5, 3) == [(5, 3), (2, 1), (1, 1)]
+    assert texture.mip_sizes(8, 1) == [(8, 1), (4, 1), (2, 1), (1, 1)]
+    assert texture.mip_sizes(1, 1) == [(1, 1)]
+    assert texture.mip_sizes(37, 23) == [(37, 23), (18, 11), (9, 5), (4, 2), (2, 1), (1, 1)]
+
+
+def test_mip_chain_shapes_match_sizes():
+    level0 = np.zeros((3, 5, 4), np.uint8)
+    chain = texture.mip_chain(level0)
+    assert [lvl.shape[1::-1] for lvl in chain] == texture.mip_sizes(5, 3)
+
+
+def test_downsample_is_a_rounded_2x2_box():
+    level = np.array([[0, 255], [255, 255]], np.uint8)[..., None]
+    assert texture.downsample(level)[0, 0, 0] == (0 + 3 * 255 + 2) // 4 == 191
+    # 3x3: floor(3/2) = 1, the box is the top-left 2x2; the last row and column are skipped.
+    level = np.array([[4, 8, 99], [12, 16, 99], [99, 99, 99]], np.uint8)[..., None]
+    assert texture.downsample(level).shape == (1, 1, 1)
+    assert texture.downsample(level)[0, 0, 0] == 10
+    # One texel thin: a 2x1 box.
+    level = np.array([[10, 21, 30, 40]], np.uint8)[..., None]
+    np.testing.assert_array_equal(texture.downsample(level)[..., 0], [[16, 35]])
+
+
+def test_mip_memory_is_four_thirds():
+    """The lecture's figure: a full mip chain costs at most 1/3 more than level 0."""
+    chain = texture.mip_chain(np.zeros((256, 256, 4), np.uint8))
+    total = sum(level.size for level in chain)
+    assert total / chain[0].size == pytest.approx(4 / 3, rel=1e-4)
+    assert total / chain[0].size < 4 / 3
+
+
+def test_procedural_checker_layout():
+    tex = texture.procedural_texels("checker", (4, 4), {"squares": 2, "color0": [0, 0, 0, 1],
+                                                        "color1": [1, 1, 1, 1]})
+    assert tex.shape == (4, 4, 4) and tex.dtype == np.uint8
+    assert tex[0, 0, 0] == 0 and tex[0, 2, 0] == 255 and tex[2, 0, 0] == 255 and tex[3, 3, 0] == 0
+    assert (tex[..., 3] == 255).all()
+
+
+def test_procedural_gradient_samples_texel_centres():
+    tex = texture.procedural_texels("gradient", (4, 1), {"direction": "horizontal",
+                                                         "color0": [0, 0, 0, 1], "color1": [1, 1, 1, 1]})
+    # (i + 0.5) / 4 * 255 = 31.875, 95.625, 159.375, 223.125
+    np.testing.assert_array_equal(tex[0, :, 0], [32, 96, 159, 223])
+
+
+def test_procedural_noise_is_seeded():
+    a = texture.procedural_texels("noise", (8, 8), {"seed": 5})
+    b = texture.procedural_texels("noise", (8, 8), {"seed": 5})
+    c = texture.procedural_texels("noise", (8, 8), {"seed": 6})
+    np.testing.assert_array_equal(a, b)
+    assert (a != c).any()
+
+
+# --------------------------------------------------------------------------- wrap
+
+
+def test_wrap_modes():
+    i = np.array([-9, -5, -4, -1, 0, 3, 4, 5, 8])
+    np.testing.assert_array_equal(texture.wrap(i, 4, "repeat"), [3, 3, 0, 3, 0, 3, 0, 1, 0])
+    np.testing.assert_array_equal(texture.wrap(i, 4, "clamp_to_edge"), [0, 0, 0, 0, 0, 3, 3, 3, 3])
+    # ... 0 1 2 3 | 3 2 1 0 | 0 1 2 3 | 3 2 1 0 ...  (period 8, index 0 starts a forward copy)
+    np.testing.assert_array_equal(texture.wrap(i, 4, "mirrored_repeat"), [0, 3, 3, 0, 0, 3, 3, 2, 0])
+
+
+# --------------------------------------------------------------------------- filter weights
+
+
+def test_bilinear_weights_float_and_fixed_point():
+    s = np.array([0.3])
+    # u = 0.3 * 4 - 0.5 = 0.7: texels 0 and 1, weight 0.7 on texel 1.
+    i0, i1, w = texture.linear_addresses(s, 4, "repeat", fixed8=False)
+    assert (i0[0], i1[0]) == (0, 1) and w[0] == pytest.approx(0.7)
+    # llvmpipe: round(0.3 * 4 * 256) - 128 = 307 - 128 = 179 = 0 * 256 + 179.
+    i0, i1, w = texture.linear_addresses(s, 4, "repeat", fixed8=True)
+    assert (i0[0], i1[0], w[0]) == (0, 1, 179)
+    # Left of the first texel centre: repeat wraps to the last texel, clamp stays.
+    s = np.array([0.05])          # u = -0.3
+    assert [int(v[0]) for v in texture.linear_addresses(s, 4, "repeat", fixed8=False)[:2]] == [3, 0]
+    assert [int(v[0]) for v in texture.linear_addresses(s, 4, "clamp_to_edge", fixed8=False)[:2]] == [0, 0]
+
+
+def test_npot_repeat_fixed_point_wraps_like_pot():
+    s = np.array([-0.01, 0.999, 1.5, 2.25])
+    for fixed8 in (False, True):
+        i0, i1, w = texture.linear_addresses(s, 5, "repeat", fixed8=fixed8)
+        assert ((0 <= i0) & (i0 < 5) & (0 <= i1) & (i1 < 5)).all()
+        np.testing.assert_array_equal(i1, (i0 + 1) % 5)
+
+
+def test_lerp8_rounds_like_pmulhrsw():
+    a, b = np.array([0, 255, 10]), np.array([255, 0, 11])
+    w = np.array([179, 179, 128])
+    # (179*255 + 128) >> 8 = 178; 255 + ((179*-255 + 128) >> 8) = 255 - 178 = 77; 10 + (128 + 128) >> 8 = 11
+    np.testing.assert_array_equal(texture.lerp8(w, a, b), [178, 77, 11])
+
+
+def test_filter_level_bilinear_by_hand():
+    level = np.zeros((2, 2, 4), np.uint8)
+    level[..., 0] = [[0, 100], [200, 40]]            # row 0 is t = 0
+    st = np.array([[0.5, 0.5]])                        # midway between all four centres
+    out = texture.filter_level(level, st[:, 0], st[:, 1], "linear", "clamp_to_edge",
+                               "clamp_to_edge", gl=False, fixed8=False)
+    assert out[0, 0] == pytest.approx((0 + 100 + 200 + 40) / 4)
+    # Nearest at the centre of texel (1, 0): 100.
+    out = texture.filter_level(level, np.array([0.75]), np.array([0.25]), "nearest",
+                               "repeat", "repeat", gl=False, fixed8=False)
+    assert out[0, 0] == 100
+
+
+# --------------------------------------------------------------------------- LOD
+
+
+def test_fast_log2_is_piecewise_linear():
+    x = np.array([1, 2, 3, 4, 9, 0.75], np.float32)
+    # exponent + mantissa - 1: 0, 1, 1 + 0.5, 2, 3 + 0.125, -1 + 0.5
+    np.testing.assert_allclose(texture.fast_log2(x), [0, 1, 1.5, 2, 3.125, -0.5])
+
+
+def _levels(rho, min_filter, gl, n_levels=9):
+    return texture.choose_levels(np.array([rho * rho], np.float64), min_filter, n_levels, gl)
+
+
+def test_lod_of_known_derivatives():
+    # ds/dx = 1/64 on a 256-texel axis: 4 texels per pixel, lambda = 2.
+    du, dv = texture.texel_derivatives(np.array([[1 / 64, 0]]), np.array([[0, 1 / 128]]), (256, 256), gl=False)
+    rho2 = texture.rho_squared(du, dv)
+    assert rho2[0] == pytest.approx(16)
+    for gl in (False, True):
+        choice = texture.choose_levels(rho2, "linear_mipmap_linear", 9, gl)
+        assert (choice.level0[0], choice.level1[0], choice.frac[0]) == (2, 3, 0)
+        assert not choice.magnified[0]
+
+
+def test_lod_between_levels():
+    # rho = 3: lambda = log2 3 = 1.585 (exact); llvmpipe 0.5 * fast_log2(9) = 1.5625.
+    exact = _levels(3, "linear_mipmap_linear", gl=False)
+    assert (exact.level0[0], exact.level1[0]) == (1, 2)
+    assert exact.frac[0] == pytest.approx(np.log2(3) - 1)
+    gl = _levels(3, "linear_mipmap_linear", gl=True)
+    assert (gl.level0[0], gl.level1[0]) == (1, 2)
+    assert gl.frac[0] == pytest.approx(0.5625)
+    # mipmap_nearest: round(1.585) = 2 both ways; rho = 2.8 (lambda 1.485) -> 1.
+    assert _levels(3, "nearest_mipmap_nearest", gl=False).level0[0] == 2
+    assert _levels(3, "nearest_mipmap_nearest", gl=True).level0[0] == 2
+    assert _levels(2.8, "nearest_mipmap_nearest", gl=False).level0[0] == 1
+    assert _levels(2.8, "nearest_mipmap_nearest", gl=True).level0[0] == 1
+
+
+def test_lod_magnification_and_clamping():
+    for gl in (False, True):
+        mag = _levels(0.5, "linear_mipmap_linear", gl)
+        assert mag.magnified[0] and mag.level0[0] == 0 and mag.frac[0] == 0
+        far = _levels(2.0 ** 20, "linear_mipmap_linear", gl, n_levels=9)
+        assert (far.level0[0], far.level1[0], far.frac[0]) == (8, 8, 0)
+        assert _levels(2.0 ** 20, "nearest_mipmap_nearest", gl, n_levels=9).level0[0] == 8
+        # Without a mipmap filter only the min/mag switch matters.
+        plain = _levels(8, "linear", gl)
+        assert not plain.magnified[0] and plain.level0[0] == 0
+
+
+def test_sample_picks_the_level():
+    levels = tuple(np.full((2 ** (3 - k), 2 ** (3 - k), 4), 10 * k, np.uint8) for k in range(4))
+    tex = texture.MipTexture("t", levels, "repeat", "repeat", "nearest_mipmap_nearest", "nearest", 1.0)
+    st = np.full((3, 2), 0.3)
+    ddx = np.array([[1 / 8, 0], [2 / 8, 0], [4 / 8, 0]])      # rho = 1, 2, 4 texels
+    for precision in ("gl", "exact"):
+        out = texture.sample(tex, st, ddx, np.zeros_like(ddx), precision)
+        np.testing.assert_allclose(out[:, 0] * 255, [0, 10, 20])
+
+
+# --------------------------------------------------------------------------- derivatives in the pipeline
+
+
+def _one_triangle():
+    clip = np.array([[[-0.9, -0.8, 0.1, 1.0], [2.4, -1.2, 0.5, 3.0], [0.3, 1.5, 0.9, 2.0]]])
+    offsets, unit = setup.sample_offsets(np.array([[0.5, 0.5]]), "exact")
+    tris = setup.setup_triangles(clip, 64, 48, precision="exact", offsets=offsets, unit=unit)
+    values = np.array([[0.0, 1.0], [2.0, -1.0], [0.5, 3.0]])[tris.corner[0]][None]
+    return tris, values
+
+
+def test_analytic_derivatives_match_finite_differences():
+    tris, values = _one_triangle()
+    t = np.zeros(5, np.int64)
+    points = np.array([[20.5, 10.5], [30.5, 20.5], [12.5, 30.5], [40.5, 5.5], [25.5, 25.5]])
+    ddx, ddy = pipeline.analytic_derivatives(tris, t, points, values)
+    h = 1e-5
+    fx = (pipeline._perspective_at(tris, t, values, points + [h, 0])
+          - pipeline._perspective_at(tris, t, values, points - [h, 0])) / (2 * h)
+    fy = (pipeline._perspective_at(tris, t, values, points + [0, h])
+          - pipeline._perspective_at(tris, t, values, points - [0, h])) / (2 * h)
+    np.testing.assert_allclose(ddx, fx, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(ddy, fy, rtol=1e-6, atol=1e-9)
+
+
+def test_quad_derivatives_are_shared_by_the_quad():
+    tris, values = _one_triangle()
+    x = np.array([20, 21, 20, 21, 22], np.int32)
+    y = np.array([10, 10, 11, 11, 10], np.int32)
+    ddx, ddy = pipeline.quad_derivatives(tris, np.zeros(5, np.int64), x, y, values)
+    for k in range(1, 4):
+        np.testing.assert_array_equal(ddx[k], ddx[0])
+        np.testing.assert_array_equal(ddy[k], ddy[0])
+    assert (ddx[4] != ddx[0]).any()
+    tl = pipeline._perspective_at(tris, np.zeros(1, np.int64), values, np.array([[20.5, 10.5]]))
+    tr = pipeline._perspective_at(tris, np.zeros(1, np.int64), values, np.array([[21.5, 10.5]]))
+    np.testing.assert_allclose(ddx[0], (tr - tl)[0], atol=1e-6)    # float32 values
