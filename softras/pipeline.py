@@ -94,13 +94,17 @@ def _world_normals(normals: np.ndarray, world: np.ndarray, unit: bool = True) ->
 
 
 def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = None,
-                 clipping: str | None = None) -> np.ndarray:
+                 clipping: str | None = None, texture_fixed_point: bool = True) -> np.ndarray:
     """Render a loaded scene; returns (H, W, 4) uint8, row 0 = top.
 
     precision : "gl" (llvmpipe's fixed point, float32 vertex math, RGBA8 and
         24-bit depth rounding) or "exact" (float64 throughout, no snapping).
     samples : overrides ``scene.samples``.
     clipping : "llvmpipe" (default in gl) or "guard_band" (default in exact).
+    texture_fixed_point : gl precision: filter RGBA8 textures with repeat /
+        clamp_to_edge wrapping in llvmpipe's 8.8 fixed point, as llvmpipe does
+        by default; False = float weights, as llvmpipe with
+        ``GALLIVM_PERF=no_aos_sampling`` (see `softras.texture`).
     """
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, not {precision!r}")
@@ -181,7 +185,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                 ddx, ddy = quad_derivatives(tris, t, frags.x, frags.y, corner_uv)
             else:
                 ddx, ddy = analytic_derivatives(tris, t, centres, corner_uv)
-            texel = texture.sample(tex, st, ddx, ddy, precision)
+            texel = texture.sample(tex, st, ddx, ddy, precision, texture_fixed_point)
         rgba = fragment.shade_unlit(colors, np.ones(4), texel)
         ops.apply_fragments(frags.x, frags.y, frags.mask, z, rgba, color, depth,
                             ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,

@@ -411,12 +411,15 @@ def uses_fixed_point(texture: MipTexture, gl: bool) -> bool:
 
 
 def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray,
-           precision: str = "gl") -> np.ndarray:
+           precision: str = "gl", fixed_point: bool = True) -> np.ndarray:
     """The full texture sampling operation.
 
     st : (N, 2) texture coordinates (s, t) at the sample.
     ddx, ddy : (N, 2) their screen-space derivatives d(s,t)/dx and d(s,t)/dy
         (per quad in gl precision, analytic in exact).
+    fixed_point : gl precision only: filter in 8.8 fixed point where llvmpipe
+        does by default (see :func:`uses_fixed_point`); False reproduces
+        llvmpipe run with ``GALLIVM_PERF=no_aos_sampling`` (float weights).
     Returns (N, 4) float64 premultiplied RGBA in [0, 1].
     """
     gl = precision == "gl"
@@ -429,7 +432,7 @@ def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray
     rho2 = rho_squared(du, dv)
     levels = texture.used_levels
     choice = choose_levels(rho2, texture.min_filter, len(levels), gl)
-    fixed8 = uses_fixed_point(texture, gl)
+    fixed8 = fixed_point and uses_fixed_point(texture, gl)
     min_image = texture.min_filter.split("_")[0]          # "nearest" or "linear"
     s, t = st[:, 0], st[:, 1]
 

@@ -148,3 +148,35 @@ def test_filter_and_wrap_match_gl(min_filter, wrap, tmp_path):
         write_failure_images(tmp_path, soft=soft, gl=gl)
         pytest.fail(f"{min_filter}/{wrap}: {(diff > 0).sum()} pixels differ, {(diff > 1).sum()} "
                     f"by more than 1/255 (max {diff.max()}; images in {tmp_path})")
+
+
+_GL_IN_SUBPROCESS = """
+import sys, numpy as np, glref, softras
+assert glref.info()["env"]["GALLIVM_PERF"] == "no_aos_sampling"
+np.save(sys.argv[2], softras.render(sys.argv[1], backend="gl"))
+"""
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("name", ["texture_photo", "texture_npot"])
+def test_float_weights_match_llvmpipe_without_aos_sampling(name, tmp_path):
+    """GALLIVM_PERF=no_aos_sampling makes llvmpipe filter in float; softras's
+    ``texture_fixed_point=False`` reproduces that, while its default (8.8 fixed
+    point, llvmpipe's default) does not.  The variable is read once per
+    process, so that GL runs in a child process."""
+    import os
+    import subprocess
+    import sys
+    from conftest import SCENES
+    path = SCENES / f"{name}.json"
+    out = tmp_path / "gl.npy"
+    env = dict(os.environ, GALLIVM_PERF="no_aos_sampling")
+    subprocess.run([sys.executable, "-c", _GL_IN_SUBPROCESS, str(path), str(out)], env=env,
+                   check=True, timeout=120)
+    gl_float = np.load(out)
+    soft_float = softras.render(path, precision="gl", texture_fixed_point=False)
+    soft_fixed = softras.render(path, precision="gl")
+    diff = np.abs(soft_float.astype(int) - gl_float.astype(int)).max(axis=2)
+    assert diff.max() <= 1 and (diff > 0).mean() < 0.005
+    changed = np.abs(soft_fixed.astype(int) - gl_float.astype(int)).max(axis=2) > 0
+    assert changed.mean() > 0.05       # the fixed-point weights show on many pixels
