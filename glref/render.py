@@ -10,6 +10,14 @@ space (computed in float64 on the CPU, uploaded as float32); GL does the rest
 (clipping, perspective divide, viewport transform to window coordinates with y
 up, rasterization, depth test, blending into an RGBA8 framebuffer). The
 readback is flipped so the returned image has row 0 = top of the picture.
+
+Textures: the texels and every mip level come from `softras.texture.prepare`
+(premultiplied RGBA8, the mip chain computed once there) and are uploaded
+level by level, so both renderers filter identical bytes; the sampler state
+is set with glTextureParameteri.  Lighting (flat / gouraud / phong
+Blinn-Phong in world space) uses lit.vert / lit.frag with lighting.glsl, and
+lit.geom.glsl for flat shading.  llvmpipe's sampling depends on
+GALLIVM_PERF, read once per process and recorded by `glref.info()`.
 """
 
 from __future__ import annotations
