@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import clip as clip_stage
-from . import fragment, interpolate, ops, rasterize, setup, texture, vertex
+from . import fragment, interpolate, lines, ops, rasterize, setup, texture, vertex
 from .scene import Scene
 
 PRECISIONS = ("gl", "exact")
@@ -117,10 +117,22 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
 
     for draw in scene.draws:
         mesh = draw.mesh
-        if mesh.primitive != "triangles":
-            raise NotImplementedError(f"{draw.path}: softras cannot draw {mesh.primitive!r} yet")
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
         clip_pos = vertex.to_clip(mesh.positions, mvp, precision)
+        if mesh.primitive == "lines":
+            if draw.material.texture is not None or draw.material.shading != "unlit":
+                raise NotImplementedError(f"{draw.path}: softras draws lines unlit and untextured only")
+            vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
+            lf = lines.line_fragments(clip_pos, mesh.indices, width, height, values=vertex_colors,
+                                      precision=precision,
+                                      sample_positions=positions, policy=policy)
+            if len(lf):
+                f = lf.fragments
+                ops.apply_fragments(f.x, f.y, f.mask, ops.quantize_depth(lf.z) if gl else lf.z,
+                                    fragment.shade_unlit(lf.values, draw.material.color), color, depth,
+                                    ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
+                                    ops.BLEND_MODES[draw.blend], gl)
+            continue
         clipped = clip_stage.clip_triangles(clip_pos, mesh.indices, precision=precision,
                                             policy=policy, width=width, height=height)
         tris = setup.setup_triangles(clipped.clip, width, height, precision=precision,
