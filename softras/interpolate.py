@@ -70,3 +70,58 @@ def depth_at_samples(vertices: np.ndarray, pixel_x: np.ndarray, pixel_y: np.ndar
     sx = pixel_x[:, None] + sample_positions[None, :, 0] - x[:, 0:1]
     sy = pixel_y[:, None] + sample_positions[None, :, 1] - y[:, 0:1]
     return z[:, 0:1] + dzdx[:, None] * sx + dzdy[:, None] * sy
+
+
+def perspective_at(vertices: np.ndarray, inv_w: np.ndarray, values: np.ndarray,
+                   points: np.ndarray) -> np.ndarray:
+    """Perspective-correct attribute at window points, inside the triangle or not.
+
+    vertices : (F, 3, >=2) window coordinates; inv_w : (F, 3); values :
+    (F, 3, K) per-vertex attributes; points : (F, 2).  Returns (F, K); the
+    attribute planes are simply extended outside the triangle.
+    """
+    lam = barycentric(vertices[..., :2], points)
+    return interpolate(perspective_weights(lam, inv_w), values)
+
+
+def quad_derivatives(vertices: np.ndarray, inv_w: np.ndarray, x: np.ndarray, y: np.ndarray,
+                     values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Screen-space derivatives per 2x2 quad, as GL implementations take them.
+
+    vertices, inv_w, values : as in `perspective_at`; x, y : (F,) pixels.
+    The quad of pixel (x, y) has its top-left (in llvmpipe's view; GL's
+    lower-left) pixel TL at (x & ~1, y & ~1).  The attribute is evaluated at
+    the pixel centres of TL, TR = TL + (1, 0) and BL = TL + (0, 1) from the
+    triangle's planes, whether those pixels are covered or not (helper
+    pixels), rounded to float32 like a shader's values, and
+    ``ddx = TR - TL``, ``ddy = BL - TL``.  Every pixel of a quad gets the same
+    derivatives.  Returns (F, K) each.
+    """
+    qx = (x & ~1).astype(np.float64) + 0.5
+    qy = (y & ~1).astype(np.float64) + 0.5
+    tl = perspective_at(vertices, inv_w, values, np.stack([qx, qy], axis=1)).astype(np.float32)
+    tr = perspective_at(vertices, inv_w, values, np.stack([qx + 1, qy], axis=1)).astype(np.float32)
+    bl = perspective_at(vertices, inv_w, values, np.stack([qx, qy + 1], axis=1)).astype(np.float32)
+    return (tr - tl).astype(np.float64), (bl - tl).astype(np.float64)
+
+
+def analytic_derivatives(vertices: np.ndarray, inv_w: np.ndarray, points: np.ndarray,
+                         values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact screen-space derivatives of a perspective-correct attribute at points.
+
+    With q_i = lam_i / w_i (lam the screen-space barycentrics, affine in x and
+    y) and Q = sum q_i, the attribute is a = sum q_i a_i / Q, so
+    ``da/dx = (sum dq_i/dx a_i - a dQ/dx) / Q``.  Arguments as in
+    `perspective_at`; returns (F, K) each.
+    """
+    vertices = vertices[..., :2]
+    lam = barycentric(vertices, points)
+    q = lam * inv_w
+    big_q = q.sum(axis=1, keepdims=True)
+    a = np.einsum("fi,fik->fk", q, values) / big_q
+    out = []
+    for step in ((1.0, 0.0), (0.0, 1.0)):
+        dlam = barycentric(vertices, points + np.array(step)) - lam   # affine: exact step
+        dq = dlam * inv_w
+        out.append((np.einsum("fi,fik->fk", dq, values) - a * dq.sum(axis=1, keepdims=True)) / big_q)
+    return out[0], out[1]

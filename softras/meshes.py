@@ -19,7 +19,6 @@ anything is allocated.
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np

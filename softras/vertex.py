@@ -46,3 +46,15 @@ def to_clip(positions: np.ndarray, mvp: np.ndarray, precision: str = "gl") -> np
         return clip.astype(np.float64)
     homogeneous = np.concatenate([positions.astype(np.float64), np.ones((len(positions), 1))], axis=1)
     return homogeneous @ mvp.T
+
+
+def world_positions(positions: np.ndarray, world: np.ndarray) -> np.ndarray:
+    """(N, 3) model positions -> (N, 3) world positions (lighting space)."""
+    return positions @ world[:3, :3].T + world[:3, 3]
+
+
+def world_normals(normals: np.ndarray, world: np.ndarray, unit: bool = True) -> np.ndarray:
+    """(N, 3) model normals -> world normals by the inverse-transpose of the
+    world matrix's 3x3 (normalised when ``unit``)."""
+    n = normals @ np.linalg.inv(world[:3, :3])           # == (inv(M)^T @ n^T)^T
+    return n / np.linalg.norm(n, axis=1, keepdims=True) if unit else n

@@ -3,7 +3,6 @@
 import copy
 import glob
 import json
-import math
 import os
 
 import numpy as np

@@ -6,7 +6,7 @@ Hand-computed values; the comparison with OpenGL is in tests/test_texture_gl.py.
 import numpy as np
 import pytest
 
-from softras import pipeline, setup, texture
+from softras import texture
 
 
 # --------------------------------------------------------------------------- texels and mips
@@ -190,42 +190,3 @@ def test_sample_picks_the_level():
     for precision in ("gl", "exact"):
         out = texture.sample(tex, st, ddx, np.zeros_like(ddx), precision)
         np.testing.assert_allclose(out[:, 0] * 255, [0, 10, 20])
-
-
-# --------------------------------------------------------------------------- derivatives in the pipeline
-
-
-def _one_triangle():
-    clip = np.array([[[-0.9, -0.8, 0.1, 1.0], [2.4, -1.2, 0.5, 3.0], [0.3, 1.5, 0.9, 2.0]]])
-    offsets, unit = setup.sample_offsets(np.array([[0.5, 0.5]]), "exact")
-    tris = setup.setup_triangles(clip, 64, 48, precision="exact", offsets=offsets, unit=unit)
-    values = np.array([[0.0, 1.0], [2.0, -1.0], [0.5, 3.0]])[tris.corner[0]][None]
-    return tris, values
-
-
-def test_analytic_derivatives_match_finite_differences():
-    tris, values = _one_triangle()
-    t = np.zeros(5, np.int64)
-    points = np.array([[20.5, 10.5], [30.5, 20.5], [12.5, 30.5], [40.5, 5.5], [25.5, 25.5]])
-    ddx, ddy = pipeline.analytic_derivatives(tris, t, points, values)
-    h = 1e-5
-    fx = (pipeline._perspective_at(tris, t, values, points + [h, 0])
-          - pipeline._perspective_at(tris, t, values, points - [h, 0])) / (2 * h)
-    fy = (pipeline._perspective_at(tris, t, values, points + [0, h])
-          - pipeline._perspective_at(tris, t, values, points - [0, h])) / (2 * h)
-    np.testing.assert_allclose(ddx, fx, rtol=1e-6, atol=1e-9)
-    np.testing.assert_allclose(ddy, fy, rtol=1e-6, atol=1e-9)
-
-
-def test_quad_derivatives_are_shared_by_the_quad():
-    tris, values = _one_triangle()
-    x = np.array([20, 21, 20, 21, 22], np.int32)
-    y = np.array([10, 10, 11, 11, 10], np.int32)
-    ddx, ddy = pipeline.quad_derivatives(tris, np.zeros(5, np.int64), x, y, values)
-    for k in range(1, 4):
-        np.testing.assert_array_equal(ddx[k], ddx[0])
-        np.testing.assert_array_equal(ddy[k], ddy[0])
-    assert (ddx[4] != ddx[0]).any()
-    tl = pipeline._perspective_at(tris, np.zeros(1, np.int64), values, np.array([[20.5, 10.5]]))
-    tr = pipeline._perspective_at(tris, np.zeros(1, np.int64), values, np.array([[21.5, 10.5]]))
-    np.testing.assert_allclose(ddx[0], (tr - tl)[0], atol=1e-6)    # float32 values
