@@ -683,28 +683,20 @@ def rasterize_lines(window: np.ndarray, width: int, height: int, precision: str 
     offsets = (positions - pixel_offset) * FIXED_ONE
     if gl:
         offsets = np.rint(offsets)
-    empty = (Fragments(np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0, np.int32),
-                       np.zeros(0, np.uint32)), np.zeros(0))
     if len(window) == 0:
-        return empty
+        return Fragments.allocate(np.zeros(0, np.int64))[0], np.zeros(0)
     qx, qy, ok = line_quads(window, precision=precision, rectangular=rectangular)
     offsets = np.ascontiguousarray(offsets, np.float64)
-    counts = _count(qx, qy, ok, bottom_edge_rule, gl, offsets, unit, int(width), int(height))
-    starts = np.zeros(len(counts), np.int64)
-    np.cumsum(counts[:-1], out=starts[1:])
-    total = int(counts.sum())
-    out_x = np.empty(total, np.int32)
-    out_y = np.empty(total, np.int32)
-    out_mask = np.empty(total, np.uint32)
-    out_line = np.empty(total, np.int64)
-    out_t = np.empty(total, np.float64)
+    frags, starts = Fragments.allocate(_count(qx, qy, ok, bottom_edge_rule, gl, offsets, unit,
+                                              int(width), int(height)))
+    out_t = np.empty(len(frags), np.float64)
     ends = np.ascontiguousarray(window[..., :2])
     if gl:
         ends = ends.astype(np.float32).astype(np.float64)
     centre = 0.5 + attribute_shift(precision, rectangular)
     _emit(qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, int(width), int(height),
-          starts, ends, out_x, out_y, out_mask, out_line, out_t)
-    return Fragments(out_line, out_x, out_y, out_mask), out_t
+          starts, ends, frags.x, frags.y, frags.mask, frags.tri, out_t)
+    return frags, out_t
 
 
 # --------------------------------------------------------------------------- interpolation

@@ -47,6 +47,20 @@ class Fragments:
     def __len__(self) -> int:
         return len(self.tri)
 
+    @classmethod
+    def allocate(cls, counts: np.ndarray) -> tuple["Fragments", np.ndarray]:
+        """Uninitialised buffers for primitives that cover ``counts`` (P,) pixels each.
+
+        Returns (fragments, starts): primitive p writes its fragments at
+        ``starts[p] : starts[p] + counts[p]`` (the write pass of the two-pass
+        count-then-write scheme, shared by triangles and lines).
+        """
+        starts = np.zeros(len(counts), np.int64)
+        np.cumsum(counts[:-1], out=starts[1:])
+        total = int(counts.sum())
+        return cls(np.empty(total, np.int64), np.empty(total, np.int32), np.empty(total, np.int32),
+                   np.empty(total, np.uint32)), starts
+
 
 @numba.njit(cache=True, inline="always")
 def _inside(e, inclusive):
@@ -150,8 +164,7 @@ def rasterize(setup: TriangleSetup, offsets: np.ndarray, unit: float) -> Fragmen
     if len(offsets) > 32:
         raise ValueError("at most 32 samples per pixel per pass")
     if len(setup) == 0:
-        return Fragments(np.zeros(0, np.int64), np.zeros(0, np.int32),
-                         np.zeros(0, np.int32), np.zeros(0, np.uint32))
+        return Fragments.allocate(np.zeros(0, np.int64))[0]
     # Raster values are int64 (gl) or float64 (exact); offsets match them.
     dtype = setup.edge_a.dtype
     args = (np.ascontiguousarray(setup.edge_a), np.ascontiguousarray(setup.edge_b, dtype),
@@ -159,13 +172,6 @@ def rasterize(setup: TriangleSetup, offsets: np.ndarray, unit: float) -> Fragmen
             np.ascontiguousarray(setup.edge_inclusive),
             np.ascontiguousarray(setup.bbox), np.ascontiguousarray(offsets, dtype),
             int(unit) if dtype.kind == "i" else float(unit))
-    counts = _count(*args)
-    starts = np.zeros(len(counts), np.int64)
-    np.cumsum(counts[:-1], out=starts[1:])
-    total = int(counts.sum())
-    out_x = np.empty(total, np.int32)
-    out_y = np.empty(total, np.int32)
-    out_mask = np.empty(total, np.uint32)
-    out_tri = np.empty(total, np.int64)
-    _emit(*args, starts, out_x, out_y, out_mask, out_tri)
-    return Fragments(out_tri, out_x, out_y, out_mask)
+    frags, starts = Fragments.allocate(_count(*args))
+    _emit(*args, starts, frags.x, frags.y, frags.mask, frags.tri)
+    return frags
