@@ -59,9 +59,11 @@ lp_bld_sample_aos.c) and checked against it by experiment:
 
 from __future__ import annotations
 
+import math
 import weakref
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .scene import Texture
@@ -404,7 +406,8 @@ def uses_fixed_point(texture: MipTexture, gl: bool) -> bool:
     """Whether llvmpipe filters this texture in 8.8 fixed point (its AoS path):
     RGBA8 with repeat / clamp_to_edge on both axes and no anisotropy."""
     simple = ("repeat", "clamp_to_edge")
-    return gl and texture.wrap_s in simple and texture.wrap_t in simple and texture.max_anisotropy <= 1
+    return (gl and texture.wrap_s in simple and texture.wrap_t in simple
+            and effective_anisotropy(texture.max_anisotropy, gl) <= 1)
 
 
 # ----------------------------------------------------------------------------- the whole operation
@@ -423,8 +426,6 @@ def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray
     Returns (N, 4) float64 premultiplied RGBA in [0, 1].
     """
     gl = precision == "gl"
-    if texture.max_anisotropy > 1:
-        raise NotImplementedError(f"texture {texture.name!r}: anisotropic filtering is not implemented")
     n = len(st)
     if n == 0:
         return np.zeros((0, 4))
@@ -432,11 +433,13 @@ def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray
     rho2 = rho_squared(du, dv)
     levels = texture.used_levels
     choice = choose_levels(rho2, texture.min_filter, len(levels), gl)
-    fixed8 = fixed_point and uses_fixed_point(texture, gl)
     min_image = texture.min_filter.split("_")[0]          # "nearest" or "linear"
     s, t = st[:, 0], st[:, 1]
 
     def filtered(level_index: np.ndarray) -> np.ndarray:
+
+    With ``max_anisotropy > 1`` the anisotropic filter takes over
+    (:func:`sample_anisotropic`).
         out = np.zeros((n, 4), np.int64 if fixed8 else np.float64)
         filters = np.where(choice.magnified, texture.mag_filter, min_image)
         for lvl in np.unique(level_index):
@@ -444,8 +447,20 @@ def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray
                 idx = np.nonzero((level_index == lvl) & (filters == image_filter))[0]
                 if len(idx):
                     out[idx] = filter_level(levels[lvl], s[idx], t[idx], image_filter,
+    if effective_anisotropy(texture.max_anisotropy, gl) > 1:
+        return sample_anisotropic(texture, st, ddx, ddy, precision)
                                             texture.wrap_s, texture.wrap_t, gl, fixed8)
         return out
+    fixed8 = fixed_point and uses_fixed_point(texture, gl)
+    return filter_at_lod(texture, st, rho2, gl, fixed8)
+
+
+def filter_at_lod(texture: MipTexture, st: np.ndarray, rho2: np.ndarray, gl: bool,
+                  fixed8: bool) -> np.ndarray:
+    """Filter at a given footprint: level choice from rho^2 (N,) in level-0
+    texels^2, then the min / mag filter on the chosen level(s) and the mip
+    blend.  st : (N, 2).  Returns (N, 4) float64 premultiplied RGBA in [0, 1]."""
+    n = len(st)
 
     level0 = np.where(choice.magnified, 0, choice.level0)
     c0 = filtered(level0)
@@ -460,3 +475,294 @@ def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray
             f = np.where(blend, choice.frac, 0.0)[:, None]
             c0 = c0 + f * (c1 - c0)
     return c0.astype(np.float64) / 255.0
+
+
+# ----------------------------------------------------------------------------- anisotropic filtering
+#
+# EXT_texture_filter_anisotropic (core in GL 4.6).  The spec's footprint: the
+# pixel's texel-space derivative vectors Px = |d(u,v)/dx|, Py = |d(u,v)/dy|,
+# Pmax / Pmin their longer / shorter length,
+#
+#     N = min(ceil(Pmax / Pmin), maxAniso)      probes along the longer axis,
+#     lambda' = log2(Pmax / N)                  the level of detail of each probe,
+#
+# and the result the mean of N ordinary (e.g. trilinear) lookups at lambda',
+# spread over the pixel along its longer axis at offsets i / (N + 1) - 1/2
+# pixel, i = 1 .. N.  That is precision="exact".
+#
+# Mesa 22.3 llvmpipe (gallivm lp_bld_sample.c: lp_build_pmin,
+# lp_build_lod_selector; lp_bld_sample_soa.c: lp_build_sample_aniso) does
+# something else, reproduced in precision="gl":
+#
+# - Mesa's state tracker hands the driver ``(unsigned) max_anisotropy`` (1.0
+#   becomes 0), so 1.5 is 1: no anisotropic filtering at all; the sampler is
+#   "aniso" when that integer is > 1.
+# - LOD: ``pmin2 = min(|Px|^2, |Py|^2)`` per 2x2 quad in float32, meant to be
+#   clamped to ``pmax2 / maxAniso^2`` where ``pmax2 > pmin2 maxAniso^2``; the
+#   22.3 code compares ``pmin2 > pmin2 * maxAniso^2`` instead, which never
+#   holds, so the clamp never fires and **the result does not depend on
+#   maxAniso at all** (2, 3, 8 and 16 render the same bytes).
+#   ``lod = 0.5 fast_log2(pmin2)`` and ONE level, ``clamp(trunc(lod), 0,
+#   last)``: no mip blend whatever the mip filter, no min/mag switch.
+# - Filter: Heckbert's EWA on that level (not GL's probes): the ellipse
+#   ``A U^2 + B U V + C V^2 <= F`` with A = vx^2 + vy^2 + 1,
+#   B = -2 (ux vx + uy vy), C = ux^2 + uy^2 + 1, F = A C - B^2 / 4 from the
+#   quad's derivatives in that level's texels (the +1 adds a one-texel
+#   reconstruction filter), scaled so that F = 1023; every texel centre of
+#   the ellipse's bounding box is fetched (nearest) and weighted by
+#   ``table[trunc(q)]``, ``table[i] = exp(-2 i / 1023)``, q evaluated
+#   incrementally in float32; texels with q > 1023 get no weight.  The sum is
+#   divided by the sum of weights (bilinear on the level if that is 0).
+
+
+def effective_anisotropy(max_anisotropy: float, gl: bool) -> float:
+    """The anisotropy limit a sampler works with.
+
+    gl: llvmpipe's, the integer part (Mesa's state tracker truncates); exact:
+    the scene's value.
+    """
+    return float(int(max_anisotropy)) if gl else float(max_anisotropy)
+
+
+def anisotropic_probes(px: np.ndarray, py: np.ndarray, max_anisotropy: float):
+    """EXT_texture_filter_anisotropic's probe count and level of detail.
+
+    px, py : (N,) lengths |d(u,v)/dx| and |d(u,v)/dy| in level-0 texels.
+    Returns (count (N,) int64 >= 1, rho2 (N,) float64) with
+    ``count = min(ceil(Pmax / Pmin), floor(max_anisotropy))`` (a whole number
+    of probes; ``Pmin = 0`` counts as infinitely anisotropic) and
+    ``rho2 = (Pmax / count)^2``, i.e. ``lambda' = log2(Pmax / count)``.
+    """
+    pmax = np.maximum(px, py)
+    pmin = np.minimum(px, py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(pmin > 0, pmax / np.where(pmin > 0, pmin, 1.0), np.inf)
+    ratio = np.where(pmax > 0, ratio, 1.0)
+    limit = max(1, math.floor(max_anisotropy))
+    count = np.minimum(np.ceil(np.minimum(ratio, limit)), limit).astype(np.int64)
+    count = np.maximum(count, 1)
+    return count, (pmax / count) ** 2
+
+
+def sample_anisotropic(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray,
+                       precision: str = "gl") -> np.ndarray:
+    """Anisotropic filtering; arguments and result as :func:`sample`.
+
+    exact: the EXT spec's N probes at lambda' (the probes' own min / mag
+    filter and mip blend as the texture says), float64; the probe positions
+    step along the longer derivative vector (``st + (i / (N + 1) - 1/2) ddx``
+    when ``Px > Py``, else ``ddy``), the spec's u(x - 1/2 + i/(N+1), y) to
+    first order.  gl: :func:`sample_anisotropic_llvmpipe`.
+    """
+    if precision == "gl":
+        return sample_anisotropic_llvmpipe(texture, st, ddx, ddy)[0]
+    du, dv = texel_derivatives(ddx, ddy, texture.size, gl=False)
+    px, py = np.hypot(du[:, 0], du[:, 1]), np.hypot(dv[:, 0], dv[:, 1])
+    count, rho2 = anisotropic_probes(px, py, texture.max_anisotropy)
+    axis = np.where((px > py)[:, None], ddx, ddy)                 # (N, 2) in (s, t) per pixel
+    total = np.zeros((len(st), 4))
+    for i in range(1, int(count.max()) + 1):
+        active = np.nonzero(count >= i)[0]
+        offset = i / (count[active] + 1.0) - 0.5
+        probe = st[active] + offset[:, None] * axis[active]
+        total[active] += filter_at_lod(texture, probe, rho2[active], gl=False, fixed8=False)
+    return total / count[:, None]
+
+
+def llvmpipe_ewa_table() -> np.ndarray:
+    """llvmpipe's EWA weight table: (1024,) float32, ``exp(-2 i / 1023)``."""
+    r2 = np.arange(1024, dtype=np.float32) / np.float32(1023)
+    return np.exp(np.float32(-2) * r2).astype(np.float32)
+
+
+def llvmpipe_aniso_levels(du: np.ndarray, dv: np.ndarray, n_levels: int) -> np.ndarray:
+    """llvmpipe's level for anisotropic sampling, (N,) int64.
+
+    du, dv : (N, 2) float32 texel-space derivative vectors d(u,v)/dx and
+    d(u,v)/dy of level 0 (per quad).  ``pmin2 = min(|du|^2, |dv|^2)`` (the
+    maxAniso clamp never fires in 22.3, see above), ``lod = 0.5
+    fast_log2(pmin2)``, level ``clamp(trunc(lod), 0, n_levels - 1)``.
+    """
+    px2 = du[:, 0] * du[:, 0] + du[:, 1] * du[:, 1]
+    py2 = dv[:, 0] * dv[:, 0] + dv[:, 1] * dv[:, 1]
+    pmin2 = np.minimum(px2, py2).astype(np.float32)
+    lod = np.float32(0.5) * fast_log2(pmin2)
+    lod = np.nan_to_num(lod, nan=0.0, posinf=n_levels, neginf=0.0)
+    return np.clip(np.trunc(lod), 0, n_levels - 1).astype(np.int64)
+
+
+_WRAP_CODES = {"repeat": 0, "clamp_to_edge": 1, "mirrored_repeat": 2}
+
+
+@dataclass(frozen=True)
+class FlatLevels:
+    """Mip levels packed into one array for the compiled kernels.
+
+    texels : (sum of W_l H_l, 4) uint8, level l's texel (i, j) at
+        ``offsets[l] + j * widths[l] + i``.
+    offsets, widths, heights : (L,) int64.
+    """
+
+    texels: np.ndarray
+    offsets: np.ndarray
+    widths: np.ndarray
+    heights: np.ndarray
+
+
+def flatten_levels(levels) -> FlatLevels:
+    """Pack (H_l, W_l, 4) uint8 levels into a :class:`FlatLevels`."""
+    sizes = np.array([lvl.shape[0] * lvl.shape[1] for lvl in levels], np.int64)
+    offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    texels = np.concatenate([lvl.reshape(-1, 4) for lvl in levels])
+    return FlatLevels(np.ascontiguousarray(texels), offsets,
+                      np.array([lvl.shape[1] for lvl in levels], np.int64),
+                      np.array([lvl.shape[0] for lvl in levels], np.int64))
+
+
+@numba.njit(cache=True)
+def _nearest_index_f32(c, size, mode):
+    """llvmpipe's nearest texel index of a normalized float32 coordinate c."""
+    if mode == 0:                                   # repeat
+        if size & (size - 1) == 0:
+            return np.int64(np.floor(c * np.float32(size))) & (size - 1)
+        f = c - np.floor(c)
+        i = np.int64(f * np.float32(size))
+        return min(max(i, 0), size - 1)
+    if mode == 1:                                   # clamp_to_edge
+        i = np.int64(np.floor(c * np.float32(size)))
+        return min(max(i, 0), size - 1)
+    # mirrored_repeat, lp_build_coord_mirror: |2 (c/2 - round(c/2))| scaled and
+    # truncated (so -1/size maps to texel 1, where the spec's mirror gives 0).
+    half = c * np.float32(0.5)
+    fraction = half - np.rint(half)
+    m = np.abs(fraction + fraction)
+    return min(np.int64(m * np.float32(size)), size - 1)
+
+
+@numba.njit(cache=True)
+def _llvmpipe_ewa_kernel(texels, offsets, widths, heights, level, s, t, dsdx, dsdy, dtdx, dtdy,
+                         width0, height0, wrap_s, wrap_t, table, out, reads):
+    """lp_build_sample_aniso, one sample at a time, in float32.
+
+    level, s, t, dsdx, dsdy, dtdx, dtdy : (N,) — the level, the normalized
+    coordinates and their per-quad derivatives (float32).  Writes out (N, 4)
+    float32 filtered RGBA in [0, 1] (NaN where no texel got weight) and
+    reads (N,) the number of texels fetched with a non-zero weight.
+    """
+    f0 = np.float32(0.0)
+    f1 = np.float32(1.0)
+    f2 = np.float32(2.0)
+    f4 = np.float32(4.0)
+    half = np.float32(0.5)
+    lut_max = np.float32(1023.0)
+    inv255 = np.float32(1.0 / 255.0)
+    fw0 = np.float32(width0)
+    fh0 = np.float32(height0)
+    for k in range(len(s)):
+        lvl = level[k]
+        wl = widths[lvl]
+        hl = heights[lvl]
+        base = offsets[lvl]
+        scaling = f1 / np.float32(1 << lvl)
+        ux = dsdx[k] * fw0 * scaling                 # level-l texels per pixel
+        uy = dsdy[k] * fw0 * scaling
+        vx = dtdx[k] * fh0 * scaling
+        vy = dtdy[k] * fh0 * scaling
+        a = vx * vx + vy * vy + f1
+        b = (ux * vx + uy * vy) * np.float32(-2.0)
+        c = ux * ux + uy * uy + f1
+        f = a * c - b * b / f4
+        d = (f0 - b * b) + a * c * f4
+        box_u = f2 / d * np.sqrt(d * c * f)
+        box_v = f2 / d * np.sqrt(a * d * f)
+        scale = lut_max / f
+        a = a * scale
+        b = b * scale
+        c = c * scale
+        ddq = a * f2
+        tex_u = s[k] * (fw0 * scaling) - half        # level-l texel space, centres at integers
+        tex_v = t[k] * (fh0 * scaling) - half
+        u0 = np.int64(np.floor(tex_u - box_u))
+        u1 = np.int64(np.ceil(tex_u + box_u))
+        v0 = np.int64(np.floor(tex_v - box_v))
+        v1 = np.int64(np.ceil(tex_v + box_v))
+        big_u = np.float32(u0) - tex_u
+        dq_base = (big_u * f2 + f1) * a
+        q_base = big_u * big_u * a
+        acc0 = f0
+        acc1 = f0
+        acc2 = f0
+        acc3 = f0
+        den = f0
+        n_reads = 0
+        fwl = np.float32(wl)
+        fhl = np.float32(hl)
+        for v in range(v0, v1 + 1):
+            big_v = np.float32(v) - tex_v
+            dq = big_v * b + dq_base
+            q = (c * big_v + b * big_u) * big_v + q_base
+            cv = np.float32(v) / fhl
+            j = _nearest_index_f32(cv, hl, wrap_t)
+            for u in range(u0, u1 + 1):
+                if q < np.float32(1024.0):           # trunc(q) <= 1023
+                    qi = np.int64(q) if q > f0 else 0
+                    w = table[qi & 1023]
+                    if w != f0:
+                        i = _nearest_index_f32(np.float32(u) / fwl, wl, wrap_s)
+                        texel = texels[base + j * wl + i]
+                        acc0 += np.float32(texel[0]) * inv255 * w
+                        acc1 += np.float32(texel[1]) * inv255 * w
+                        acc2 += np.float32(texel[2]) * inv255 * w
+                        acc3 += np.float32(texel[3]) * inv255 * w
+                        den += w
+                        n_reads += 1
+                q = q + dq
+                dq = dq + ddq
+        if den == f0:
+            out[k, :] = np.nan
+        else:
+            out[k, 0] = acc0 / den
+            out[k, 1] = acc1 / den
+            out[k, 2] = acc2 / den
+            out[k, 3] = acc3 / den
+        reads[k] = n_reads
+
+
+_flat_cache: "weakref.WeakKeyDictionary[MipTexture, FlatLevels]" = weakref.WeakKeyDictionary()
+
+
+def flat_levels(texture: MipTexture) -> FlatLevels:
+    """The texture's reachable levels packed for the kernels (cached)."""
+    flat = _flat_cache.get(texture)
+    if flat is None:
+        flat = flatten_levels(texture.used_levels)
+        _flat_cache[texture] = flat
+    return flat
+
+
+def sample_anisotropic_llvmpipe(texture: MipTexture, st: np.ndarray, ddx: np.ndarray,
+                                ddy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What Mesa 22.3 llvmpipe computes for an "aniso" sampler (see the notes
+    above): returns ((N, 4) float64 RGBA in [0, 1], (N,) int64 texel reads)."""
+    n = len(st)
+    du, dv = texel_derivatives(ddx, ddy, texture.size, gl=True)
+    level = llvmpipe_aniso_levels(du, dv, len(texture.used_levels))
+    st32 = st.astype(np.float32)
+    d32x, d32y = ddx.astype(np.float32), ddy.astype(np.float32)
+    flat = flat_levels(texture)
+    out = np.empty((n, 4), np.float32)
+    reads = np.zeros(n, np.int64)
+    width0, height0 = texture.size
+    _llvmpipe_ewa_kernel(flat.texels, flat.offsets, flat.widths, flat.heights, level,
+                         st32[:, 0].copy(), st32[:, 1].copy(), d32x[:, 0].copy(), d32y[:, 0].copy(),
+                         d32x[:, 1].copy(), d32y[:, 1].copy(), width0, height0,
+                         _WRAP_CODES[texture.wrap_s], _WRAP_CODES[texture.wrap_t],
+                         llvmpipe_ewa_table(), out, reads)
+    result = out.astype(np.float64)
+    empty = np.nonzero(np.isnan(result[:, 0]))[0]
+    for lvl in np.unique(level[empty]):
+        idx = empty[level[empty] == lvl]
+        result[idx] = filter_level(texture.used_levels[lvl], st[idx, 0], st[idx, 1], "linear",
+                                   texture.wrap_s, texture.wrap_t, gl=True, fixed8=False) / 255.0
+        reads[idx] = 4
+    return result, reads

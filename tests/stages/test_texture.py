@@ -190,3 +190,87 @@ def test_sample_picks_the_level():
     for precision in ("gl", "exact"):
         out = texture.sample(tex, st, ddx, np.zeros_like(ddx), precision)
         np.testing.assert_allclose(out[:, 0] * 255, [0, 10, 20])
+
+
+# --------------------------------------------------------------------------- anisotropic filtering
+
+
+def test_effective_anisotropy_truncates_in_gl():
+    """Mesa's state tracker passes (unsigned) max_anisotropy: 1.5 is no anisotropy in GL."""
+    assert texture.effective_anisotropy(1.5, gl=True) == 1
+    assert texture.effective_anisotropy(16, gl=True) == 16
+    assert texture.effective_anisotropy(1.5, gl=False) == 1.5
+
+
+def test_anisotropic_probes_by_hand():
+    # EXT_texture_filter_anisotropic: Px = 8, Py = 1 texels: N = min(ceil(8 / 1), maxAniso),
+    # lambda' = log2(Pmax / N): 8 probes at lambda 0 with maxAniso 16, 4 at lambda 1 with 4.
+    count, rho2 = texture.anisotropic_probes(np.array([8.0]), np.array([1.0]), 16)
+    assert count[0] == 8 and rho2[0] == pytest.approx(1.0)
+    count, rho2 = texture.anisotropic_probes(np.array([8.0]), np.array([1.0]), 4)
+    assert count[0] == 4 and rho2[0] == pytest.approx(4.0)
+    # Ratio 2.5 rounds up to 3 probes; Pmin = 0 takes maxAniso; no footprint: 1 probe.
+    count, rho2 = texture.anisotropic_probes(np.array([1.0, 6.0, 0.0]), np.array([2.5, 0.0, 0.0]), 8)
+    np.testing.assert_array_equal(count, [3, 8, 1])
+    np.testing.assert_allclose(rho2, [(2.5 / 3) ** 2, (6 / 8) ** 2, 0.0])
+
+
+def _ramp_texture(min_filter, mag_filter, max_anisotropy):
+    """16x16, red = 10 * column index; a full mip chain."""
+    level0 = np.zeros((16, 16, 4), np.uint8)
+    level0[..., 0] = 10 * np.arange(16)[None, :]
+    level0[..., 3] = 255
+    return texture.MipTexture("ramp", texture.mip_chain(level0), "repeat", "repeat",
+                              min_filter, mag_filter, float(max_anisotropy))
+
+
+def test_exact_anisotropic_averages_the_spec_probes():
+    """Px = 4 texels along u, Py = 1: N = 4 probes, lambda' = log2(4 / 4) = 0, so
+    each probe is the mag filter (nearest) on level 0.  At s = 1/2 (u = 8) the
+    probes sit at u = 8 + 4 (i / 5 - 1/2), i = 1..4: 6.8, 7.6, 8.4, 9.2 ->
+    texels 6, 7, 8, 9 -> (60 + 70 + 80 + 90) / 4 = 75 (a single lookup: 80)."""
+    tex = _ramp_texture("linear_mipmap_linear", "nearest", 16)
+    st = np.array([[0.5, 0.5]])
+    ddx, ddy = np.array([[4 / 16, 0.0]]), np.array([[0.0, 1 / 16]])
+    out = texture.sample(tex, st, ddx, ddy, "exact")
+    assert out[0, 0] * 255 == pytest.approx(75)
+    single = _ramp_texture("linear_mipmap_linear", "nearest", 1)
+    assert texture.sample(single, st, ddx * 0.25, ddy, "exact")[0, 0] * 255 == pytest.approx(80)
+
+
+def test_llvmpipe_aniso_level_from_the_minor_axis():
+    # pmin2 = min(64^2, 4^2) = 16: lod = 0.5 fast_log2(16) = 2 -> level 2.
+    du, dv = np.array([[64.0, 0.0]], np.float32), np.array([[0.0, 4.0]], np.float32)
+    assert texture.llvmpipe_aniso_levels(du, dv, 9)[0] == 2
+    # pmin2 = 9: 0.5 fast_log2(9) = 0.5 * 3.125 = 1.5625, truncated -> 1; clamped to the chain.
+    dv = np.array([[0.0, 3.0]], np.float32)
+    assert texture.llvmpipe_aniso_levels(du, dv, 9)[0] == 1
+    assert texture.llvmpipe_aniso_levels(du * 1000, dv * 1000, 3)[0] == 2
+    # Magnified (pmin2 < 1): level 0.
+    assert texture.llvmpipe_aniso_levels(du / 1000, dv / 1000, 9)[0] == 0
+
+
+def test_llvmpipe_ewa_table():
+    table = texture.llvmpipe_ewa_table()
+    assert table.dtype == np.float32 and table.shape == (1024,)
+    assert table[0] == 1 and table[1023] == pytest.approx(np.exp(-2), rel=1e-6)
+    assert (np.diff(table) < 0).all()
+
+
+def test_llvmpipe_ewa_weights_are_normalized_and_ignore_max_anisotropy():
+    """A constant texture filters to itself; the result does not depend on
+    maxAniso (22.3's clamp never fires); the ellipse spans Px x Py texels."""
+    levels = tuple(np.full((2 ** (4 - k), 2 ** (4 - k), 4), 77, np.uint8) for k in range(5))
+    tex = texture.MipTexture("c", levels, "repeat", "repeat", "linear_mipmap_linear", "linear", 16.0)
+    rng = np.random.default_rng(3)
+    st = rng.uniform(0, 1, (50, 2))
+    ddx, ddy = rng.uniform(-0.5, 0.5, (50, 2)), rng.uniform(-0.05, 0.05, (50, 2))
+    out, reads = texture.sample_anisotropic_llvmpipe(tex, st, ddx, ddy)
+    np.testing.assert_allclose(out * 255, 77, atol=1e-3)
+    assert (reads >= 1).all()
+    ramp16, ramp2 = _ramp_texture("linear_mipmap_linear", "linear", 16), _ramp_texture("linear_mipmap_linear", "linear", 2)
+    np.testing.assert_array_equal(texture.sample(ramp16, st, ddx, ddy, "gl"), texture.sample(ramp2, st, ddx, ddy, "gl"))
+    # Px = 8, Py = 1 texels on level 0: the ellipse reaches ~4 texels either side along u, ~1 along v.
+    _, reads = texture.sample_anisotropic_llvmpipe(ramp16, np.array([[0.5, 0.5]]),
+                                                   np.array([[8 / 16, 0.0]]), np.array([[0.0, 1 / 16]]))
+    assert 12 <= reads[0] <= 40
