@@ -52,6 +52,14 @@ def test_exact_precision_close_to_gl_precision(path):
         # weight up to 0.043 off the spec's) and its 8-bit weights; exact
         # follows the spec: up to ~11/255 apart on high-contrast checkers.
         threshold = 12
+    min_ssim = 0.99
+    if any(t.max_anisotropy >= 2 for t in scene.textures.values()):
+        # Two different anisotropic filters: exact averages the EXT spec's
+        # probes, gl reproduces llvmpipe's EWA on one mip level
+        # (softras.texture).  Seen on the grazing floor: up to 64/255, SSIM
+        # 0.984; each is checked against its own reference elsewhere (glref;
+        # tests/stages/test_texture.py).
+        threshold, min_ssim = 64, 0.98
     result = softras.compare(gl, exact, threshold=threshold, max_bad_fraction=0.02 * scene.samples,
-                             min_ssim=0.99)
+                             min_ssim=min_ssim)
     assert result.passed, result.summary()
