@@ -11,8 +11,9 @@ Policies (``clipping=``):
     vertex outside any of the six planes is clipped against those planes
     (Sutherland-Hodgman, planes in the order right, left, top, bottom, near,
     far), in float32, with no guard band.  A new vertex is interpolated from
-    the *outside* vertex of its edge, so the two triangles that share an edge
-    compute bit-identical new vertices.  The default in ``precision="gl"``.
+    the end of its edge nearer the plane (the inside end on a tie), so the
+    two triangles that share an edge compute bit-identical new vertices and
+    a vertex 1e7 outside does not wipe out the float32 result.  The default in ``precision="gl"``.
 ``"guard_band"``
     Only near and far clip geometrically; x and y are clipped against a band
     of +-GUARD_BAND_PIXELS around the viewport centre, and the rasterizer's
@@ -30,6 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 # Plane coefficients (a, b, c, d): inside when a*x + b*y + c*z + d*w >= 0.
@@ -131,7 +133,41 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
             source=kept.astype(np.int64),
             weights=np.broadcast_to(identity, (len(kept), 3, 3)).copy(),
         )
+    if precision != "gl" or policy != "llvmpipe":
+        return _clip_with_polygons(clip, indices, keep, crossing, tri_out, planes, precision)
 
+    # gl: the crossing triangles are clipped by a compiled kernel (bit for bit
+    # `clip_polygon`, see tests/stages/test_clip.py), in two passes (count,
+    # then write) so the output is exact-sized and in draw order.
+    cross = np.nonzero(crossing)[0]
+    plane_mask = tri_out[cross].any(axis=1)                     # (C, 6) planes to clip against
+    corners = np.ascontiguousarray(clip[indices[cross]])        # (C, 3, 4)
+    fan_counts = _clip_gl_kernel(corners, plane_mask, np.zeros(len(cross), np.int64),
+                                 np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
+    counts = keep.astype(np.int64)
+    counts[cross] = fan_counts
+    starts = np.zeros(len(counts), np.int64)
+    np.cumsum(counts[:-1], out=starts[1:])
+    total = int(counts.sum())
+    out_clip = np.empty((total, 3, 4))
+    out_weights = np.empty((total, 3, 3))
+    out_source = np.repeat(np.arange(len(indices), dtype=np.int64), counts)
+    kept = np.nonzero(keep)[0]
+    out_clip[starts[kept]] = clip[indices[kept]]
+    out_weights[starts[kept]] = identity
+    cross_clip = np.empty((int(fan_counts.sum()), 3, 4))
+    cross_weights = np.empty((len(cross_clip), 3, 3))
+    _clip_gl_kernel(corners, plane_mask, fan_counts, cross_clip, cross_weights, True)
+    slots = (np.repeat(starts[cross] - np.cumsum(fan_counts) + fan_counts, fan_counts)
+             + np.arange(len(cross_clip)))
+    out_clip[slots] = cross_clip
+    out_weights[slots] = cross_weights
+    return ClippedTriangles(out_clip, out_source, out_weights)
+
+
+def _clip_with_polygons(clip, indices, keep, crossing, tri_out, planes, precision) -> ClippedTriangles:
+    """The reference loop: `clip_polygon` per crossing triangle, in draw order."""
+    identity = np.eye(3)
     out_clip, out_source, out_weights = [], [], []
     for t in np.nonzero(keep | crossing)[0]:
         corners = clip[indices[t]]
@@ -154,6 +190,80 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
         source=np.array(out_source, dtype=np.int64),
         weights=np.array(out_weights, dtype=np.float64),
     )
+
+
+@numba.njit(cache=True)
+def _clip_gl_kernel(corners, plane_mask, fan_counts, out_clip, out_weights, write):
+    """`clip_polygon` in float32 against the llvmpipe frustum planes, compiled.
+
+    corners : (C, 3, 4) clip-space triangles; plane_mask : (C, 6) bool, the
+    planes (FRUSTUM_PLANES order) each one is clipped against.  Count pass
+    (``write`` False): returns (C,) fan sizes.  Write pass: writes each fan
+    (v[k-1], v[k], v[0]) consecutively into out_clip (F, 3, 4) and
+    out_weights (F, 3, 3) and returns fan_counts unchanged.  Every float32
+    operation is the one `clip_polygon` performs, in the same order.
+    """
+    n = corners.shape[0]
+    counts = np.zeros(n, np.int64)
+    pts = np.empty((12, 4))
+    wts = np.empty((12, 3))
+    new_pts = np.empty((12, 4))
+    new_wts = np.empty((12, 3))
+    d = np.empty(12, np.float32)
+    at = 0
+    for c in range(n):
+        m = 3
+        for k in range(3):
+            for j in range(4):
+                pts[k, j] = corners[c, k, j]
+            for j in range(3):
+                wts[k, j] = 1.0 if j == k else 0.0
+        for p in range(6):
+            if not plane_mask[c, p] or m < 3:
+                continue
+            a, b, cz, dw = (FRUSTUM_PLANES[p, 0], FRUSTUM_PLANES[p, 1],
+                            FRUSTUM_PLANES[p, 2], FRUSTUM_PLANES[p, 3])
+            for k in range(m):
+                d[k] = np.float32(a * pts[k, 0] + b * pts[k, 1] + cz * pts[k, 2] + dw * pts[k, 3])
+            nm = 0
+            for i in range(1, m + 1):
+                prev = i - 1
+                cur = i % m
+                if d[prev] >= 0:
+                    new_pts[nm] = pts[prev]
+                    new_wts[nm] = wts[prev]
+                    nm += 1
+                if (d[prev] >= 0) != (d[cur] >= 0):
+                    if d[cur] < 0:
+                        out_i, in_i = cur, prev
+                    else:
+                        out_i, in_i = prev, cur
+                    if not -d[out_i] < d[in_i]:                         # start from the nearer end
+                        out_i, in_i = in_i, out_i
+                    t = d[out_i] / (d[out_i] - d[in_i])                 # float32
+                    for j in range(4):
+                        p_out = np.float32(pts[out_i, j])
+                        p_in = np.float32(pts[in_i, j])
+                        new_pts[nm, j] = np.float64(p_out + t * (p_in - p_out))
+                    t64 = np.float64(t)
+                    for j in range(3):
+                        new_wts[nm, j] = wts[out_i, j] + t64 * (wts[in_i, j] - wts[out_i, j])
+                    nm += 1
+            m = nm
+            pts[:m] = new_pts[:m]
+            wts[:m] = new_wts[:m]
+        fans = max(m - 2, 0)
+        counts[c] = fans
+        if write:
+            for k in range(2, m):
+                out_clip[at, 0] = pts[k - 1]
+                out_clip[at, 1] = pts[k]
+                out_clip[at, 2] = pts[0]
+                out_weights[at, 0] = wts[k - 1]
+                out_weights[at, 1] = wts[k]
+                out_weights[at, 2] = wts[0]
+                at += 1
+    return counts
 
 
 def clip_polygon(points: np.ndarray, weights: np.ndarray, planes: np.ndarray,
@@ -180,8 +290,14 @@ def clip_polygon(points: np.ndarray, weights: np.ndarray, planes: np.ndarray,
                 new_points.append(points[prev])
                 new_weights.append(weights[prev])
             if (d_prev >= 0) != (d_cur >= 0):
-                # Interpolate from the outside vertex towards the inside one.
+                # Interpolate from the end nearer the plane towards the other
+                # (Mesa's draw_pipe_clip.c; the inside end on a tie): starting
+                # from a far outside vertex (|d| ~ 1e7) cancels catastrophically
+                # in float32 (scenes/extreme_huge_coordinates.json).  Below,
+                # "out" names that start vertex and "in" the other end.
                 out_i, in_i = (cur, prev) if d_cur < 0 else (prev, cur)
+                if not -d[out_i] < d[in_i]:
+                    out_i, in_i = in_i, out_i
                 d_out, d_in = d[out_i], d[in_i]
                 if f32:
                     t = np.float32(d_out) / (np.float32(d_out) - np.float32(d_in))
@@ -197,3 +313,94 @@ def clip_polygon(points: np.ndarray, weights: np.ndarray, planes: np.ndarray,
         points = np.array(new_points).reshape(-1, 4)
         weights = np.array(new_weights).reshape(-1, weights.shape[1])
     return points, weights
+
+
+@numba.njit(cache=True)
+def outcodes_gl(clip):
+    """Per-vertex outcodes for the llvmpipe planes in gl precision: (N,) int64,
+    bit p set when the vertex is outside FRUSTUM_PLANES[p] (distance rounded
+    to float32 < 0, as `plane_distances`), bit 6 set when not finite."""
+    n = clip.shape[0]
+    codes = np.zeros(n, np.int64)
+    for v in range(n):
+        x, y, z, w = clip[v, 0], clip[v, 1], clip[v, 2], clip[v, 3]
+        code = 0
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z) and np.isfinite(w)):
+            code |= 64
+        for p in range(6):
+            d = np.float32(FRUSTUM_PLANES[p, 0] * x + FRUSTUM_PLANES[p, 1] * y
+                           + FRUSTUM_PLANES[p, 2] * z + FRUSTUM_PLANES[p, 3] * w)
+            if d < 0:
+                code |= 1 << p
+        codes[v] = code
+    return codes
+
+
+@numba.njit(cache=True)
+def triangle_list_gl(clip, indices):
+    """`clip_triangles` (gl precision, llvmpipe policy) without copying the
+    triangles that pass through unchanged.
+
+    Returns (source (T,) int64 input triangle of each output triangle,
+    slot (T,) int64: -1 for a passed-through triangle (its corners are
+    ``clip[indices[source]]`` with identity weights), else the row of its fan
+    triangle in fan_clip (F, 3, 4) / fan_weights (F, 3, 3)).  Same triangles,
+    same order, same bits as `clip_triangles`.
+    """
+    codes = outcodes_gl(clip)
+    m = indices.shape[0]
+    status = np.zeros(m, np.int64)          # 0 culled, 1 passed through, 2 crossing
+    n_cross = 0
+    for t in range(m):
+        c0, c1, c2 = codes[indices[t, 0]], codes[indices[t, 1]], codes[indices[t, 2]]
+        if ((c0 | c1 | c2) & 64) or (c0 & c1 & c2) != 0:
+            continue
+        if (c0 | c1 | c2) == 0:
+            status[t] = 1
+        else:
+            status[t] = 2
+            n_cross += 1
+    cross = np.empty(n_cross, np.int64)
+    corners = np.empty((n_cross, 3, 4))
+    mask = np.zeros((n_cross, 6), np.bool_)
+    k = 0
+    for t in range(m):
+        if status[t] == 2:
+            cross[k] = t
+            union = codes[indices[t, 0]] | codes[indices[t, 1]] | codes[indices[t, 2]]
+            for p in range(6):
+                mask[k, p] = (union >> p) & 1
+            for v in range(3):
+                corners[k, v] = clip[indices[t, v]]
+            k += 1
+    fans = _clip_gl_kernel(corners, mask, np.zeros(n_cross, np.int64),
+                           np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
+    fan_clip = np.empty((fans.sum(), 3, 4))
+    fan_weights = np.empty((fans.sum(), 3, 3))
+    _clip_gl_kernel(corners, mask, fans, fan_clip, fan_weights, True)
+    total = 0
+    k = 0
+    for t in range(m):
+        if status[t] == 1:
+            total += 1
+        elif status[t] == 2:
+            total += fans[k]
+            k += 1
+    source = np.empty(total, np.int64)
+    slot = np.empty(total, np.int64)
+    at = 0
+    k = 0
+    row = 0
+    for t in range(m):
+        if status[t] == 1:
+            source[at] = t
+            slot[at] = -1
+            at += 1
+        elif status[t] == 2:
+            for f in range(fans[k]):
+                source[at] = t
+                slot[at] = row
+                row += 1
+                at += 1
+            k += 1
+    return source, slot, fan_clip, fan_weights

@@ -1,0 +1,689 @@
+"""The gl-precision fast path: one fused, tiled, compiled kernel per draw.
+
+`softras.pipeline` is the readable reference: every stage materialises its
+output (clipped triangles, set-up triangles, a fragment list, per-fragment
+attributes) as numpy arrays.  This module computes *the same numbers* (bit for
+bit, see tests/test_fastpath.py) for the draws that need only the common
+features, without the intermediate buffers:
+
+1. vertex: `softras.vertex.to_clip` (numpy, per vertex);
+2. clip: `softras.clip.clip_triangles` (its crossing triangles go through a
+   compiled kernel in gl precision);
+3. setup (`_setup`, compiled, one pass over the clipped triangles): viewport
+   transform with llvmpipe's fused multiply-add, 1/256 snapping, area and
+   culling, counter-clockwise corner order, integer edge functions, fill rule,
+   pixel bounding box, depth plane; then (`_corner_values`) the attributes at
+   the corners (clip weights x source vertex values, in the pipeline's order);
+4. binning (`_bin`): the visible triangles are listed, in draw order, in every
+   64x64-pixel tile their bounding box touches;
+5. `_draw_tiles`: tiles in parallel (numba prange: a pixel belongs to one tile,
+   so tiles never race on the framebuffer); within a tile the triangles in
+   draw order; per triangle the 8x8 blocks of its bounding box inside the
+   tile with the exact early-out / early-in corner test of
+   `softras.rasterize`; per covered pixel, at once: depth at each sample
+   (plane equation, 24-bit rounding), depth test, perspective-correct
+   colour (and texture coordinates, per-quad derivatives and the texture
+   sample), blend, RGBA8 rounding and the write.  No fragment list exists.
+
+The framebuffer here is what gl precision stores anyway: colour as RGBA8
+bytes (``(H, W, S, 4) uint8``; byte k stands for the pipeline's float k/255)
+and depth as float64 multiples of 1/(2^24 - 1).
+
+`unsupported(scene, ...)` says why a scene must take the general path (lines,
+lit shading, anisotropic textures, other sample counts or clipping
+policies...).  A draw pays only for what it uses: the texture stage runs only
+for a textured draw, blending only with a blend mode (the kernel branches on
+per-draw constants outside of the per-pixel work).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from . import clip as clip_stage
+from . import ops, setup, texture, vertex
+from .ops import _blend, _depth_pass
+from .scene import Scene, ordered_draws
+
+TILE = 64          # pixels per tile side (binning and the parallel unit)
+BLOCK = 8          # pixels per block side (hierarchical coverage test)
+DEPTH_SCALE = float((1 << ops.DEPTH_BITS) - 1)
+
+# Per set-up triangle, float64 row of `tri_f`: window x (3), y (3), z (3),
+# 1/w (3), dz/dx, dz/dy.  int64 row of `tri_i`: edge A (3), B (3), X0 (3),
+# Y0 (3), inclusive (3), corners swapped (1), visible (1).
+_F_X, _F_Y, _F_Z, _F_W, _F_DZDX, _F_DZDY, _NF = 0, 3, 6, 9, 12, 13, 14
+_I_A, _I_B, _I_X0, _I_Y0, _I_INC, _I_SWAP, _I_VIS, _NI = 0, 3, 6, 9, 12, 15, 16, 17
+
+CULL_CODES = {"none": 0, "back": 1, "front": 2}
+WRAP_CODES = {"repeat": 0, "clamp_to_edge": 1, "mirrored_repeat": 2}
+FILTER_CODES = {"nearest": 0, "linear": 1}
+MIN_FILTERS = ("nearest", "linear") + texture.MIPMAP_FILTERS
+# Texture parameter vector (int64): enabled, min image filter, mag filter,
+# mip mode (0 none, 1 nearest, 2 linear), wrap s, wrap t, fixed8, levels.
+_T_ON, _T_MIN, _T_MAG, _T_MIP, _T_WS, _T_WT, _T_FIXED, _T_LEVELS = range(8)
+
+# Sample counts the fast path renders (the positions are the pipeline's).
+FAST_SAMPLES = (1, 4)
+
+
+# ----------------------------------------------------------------------------- dispatch
+
+
+def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | None) -> str | None:
+    """Why ``scene`` must take the general pipeline, or None when this path renders it.
+
+    The caller (`softras.pipeline.render_scene`) has already checked the
+    options this path does not look at (RGBA8 framebuffer, GL's sample
+    pattern).
+    """
+    if precision != "gl":
+        return "precision is not gl"
+    if samples not in FAST_SAMPLES:
+        return f"{samples} samples"
+    if clipping not in (None, "llvmpipe"):
+        return f"clipping {clipping!r}"
+    for draw in scene.draws:
+        material = draw.material
+        if draw.mesh.primitive != "triangles":
+            return f"{draw.path}: {draw.mesh.primitive}"
+        if material.shading != "unlit":
+            return f"{draw.path}: {material.shading} shading"
+        for extra in ("normal_map", "bump_map"):
+            if getattr(material, extra, None) is not None:
+                return f"{draw.path}: {extra}"
+        if material.texture is not None:
+            tex = scene.textures[material.texture]
+            if (tex.max_anisotropy > 1 or tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
+                    or tex.mag_filter not in FILTER_CODES or tex.min_filter not in MIN_FILTERS):
+                return f"{draw.path}: texture sampler state"
+    return None
+
+
+def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True) -> np.ndarray:
+    """Render a scene that `unsupported` accepts at GL's sample positions (S, 2).
+
+    Returns the per-sample colour buffer (H, W, S, 4) uint8, GL's y-up rows:
+    byte k where the general pipeline stores the float k/255.
+    """
+    offsets, _ = setup.sample_offsets(positions, "gl")
+    color, depth = new_framebuffer(scene.width, scene.height, len(positions), scene.background)
+    offsets = np.ascontiguousarray(offsets, np.int64)
+    positions = np.ascontiguousarray(positions, np.float64)
+    for draw in ordered_draws(scene):
+        draw_triangles(scene, draw, color, depth, offsets, positions, texture_fixed_point)
+    return color
+
+
+def new_framebuffer(width: int, height: int, samples: int, background) -> tuple[np.ndarray, np.ndarray]:
+    """(color (H, W, S, 4) uint8, depth (H, W, S) float64) cleared as `ops.new_framebuffer`
+    with quantize: colour bytes round(clamp(premultiplied background) * 255), depth 1."""
+    bg = np.asarray(background, np.float64)
+    premultiplied = np.concatenate([bg[:3] * bg[3], bg[3:4]])
+    clear_bytes = np.rint(np.clip(premultiplied, 0.0, 1.0) * 255.0).astype(np.uint8)
+    color = np.empty((height, width, samples, 4), np.uint8)
+    depth = np.empty((height, width, samples))
+    clear(color, depth, clear_bytes)
+    return color, depth
+
+
+def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture_fixed_point) -> None:
+    """One triangle draw into the byte framebuffer (see the module docstring)."""
+    mesh = draw.mesh
+    width, height = scene.width, scene.height
+    mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
+    clip_pos = vertex.to_clip(mesh.positions, mvp, "gl")
+    source, slot, fan_clip, fan_weights = clip_stage.triangle_list_gl(clip_pos, mesh.indices)
+    if len(source) == 0:
+        return
+    tri_f, tri_i, bbox = _setup(clip_pos, mesh.indices, source, slot, fan_clip, fan_weights,
+                                width, height, CULL_CODES[draw.cull], offsets, SUBPIXEL_ONE)
+    visible = np.flatnonzero(tri_i[:, _I_VIS])
+    if len(visible) == 0:
+        return
+    material = draw.material
+    vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
+    base = np.ascontiguousarray(vertex_colors * material.color)             # straight, per vertex
+    corner_args = (tri_i[:, _I_SWAP], mesh.indices, source, slot, fan_weights, visible)
+    colors = _corner_values(base, *corner_args)
+    tex_params = np.zeros(8, np.int64)
+    levels_flat, level_table = np.zeros(1, np.uint8), np.zeros((1, 3), np.int64)
+    uv = np.zeros((1, 3, 2))
+    if material.texture is not None:
+        tex = texture.prepare(scene.textures[material.texture])
+        tex_params, levels_flat, level_table = texture_tables(tex, texture_fixed_point)
+        uvs = np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64))
+        uv = _corner_values(uvs, *corner_args)
+    tiles_x = (width + TILE - 1) // TILE
+    tiles_y = (height + TILE - 1) // TILE
+    bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
+    _draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                offsets, positions, color, depth,
+                ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
+                tex_params, levels_flat, level_table)
+
+
+def texture_tables(tex: texture.MipTexture, fixed_point: bool):
+    """A prepared texture as the kernel's (params (8,) int64, texels (N,) uint8,
+    levels (L, 3) int64 offset / width / height) tables."""
+    levels = tex.used_levels
+    table = np.zeros((len(levels), 3), np.int64)
+    at = 0
+    for k, level in enumerate(levels):
+        h, w = level.shape[:2]
+        table[k] = (at, w, h)
+        at += h * w * 4
+    flat = np.concatenate([np.ascontiguousarray(level).reshape(-1) for level in levels])
+    mip = 0
+    if tex.mipmapped:
+        mip = 1 if tex.min_filter.endswith("mipmap_nearest") else 2
+    params = np.array([1, FILTER_CODES[tex.min_filter.split("_")[0]], FILTER_CODES[tex.mag_filter], mip,
+                       WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t],
+                       int(fixed_point and texture.uses_fixed_point(tex, True)), len(levels)], np.int64)
+    return params, flat, table
+
+
+SUBPIXEL_ONE = 256
+
+
+# ----------------------------------------------------------------------------- setup
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit):
+    """`softras.setup.setup_triangles` (gl precision) and the depth plane of
+    `softras.interpolate.depth_at_samples`, for the clipped triangles listed
+    by `softras.clip.triangle_list_gl` (source, slot, fan_clip, fan_weights).
+
+    Returns tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts at the top
+    of the module) and bbox (T, 4) int64 (x0, x1, y0, y1 inclusive); the
+    triangles that the pipeline drops (zero area, culled, empty box) have
+    tri_i[:, _I_VIS] == 0.
+    """
+    n = source.shape[0]
+    tri_f = np.zeros((n, _NF))
+    tri_i = np.zeros((n, _NI), np.int64)
+    bbox = np.zeros((n, 4), np.int64)
+    sx = np.array([width / 2.0, height / 2.0, 0.5])
+    sx32 = sx.astype(np.float32)
+    wx = np.empty(3)
+    wy = np.empty(3)
+    wz = np.empty(3)
+    iw = np.empty(3)
+    win = np.empty(3)
+    rx = np.empty(3, np.int64)
+    ry = np.empty(3, np.int64)
+    min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
+    min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
+    for t in range(n):
+        for k in range(3):
+            if slot[t] < 0:
+                vert = clip_pos[indices[source[t], k]]
+                fused = True
+            else:
+                vert = fan_clip[slot[t], k]
+                wts = fan_weights[slot[t], k]
+                # A vertex made by the clipper has no weight exactly 1 (clip.generated).
+                fused = max(wts[0], max(wts[1], wts[2])) == 1.0
+            oow = np.float32(1.0) / np.float32(vert[3])
+            for j in range(3):
+                p = np.float64(np.float32(vert[j]) * oow)
+                if fused:
+                    win[j] = np.float64(np.float32(p * sx[j] + sx[j]))
+                else:
+                    win[j] = np.float64(np.float32(np.float32(p * sx[j]) + sx32[j]))
+            wx[k], wy[k], wz[k], iw[k] = win[0], win[1], win[2], np.float64(oow)
+            rx[k] = np.int64(np.rint((np.float32(win[0]) - np.float32(0.5)) * np.float32(256.0)))
+            ry[k] = np.int64(np.rint((np.float32(win[1]) - np.float32(0.5)) * np.float32(256.0)))
+        area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
+        front = area > 0
+        if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
+            continue
+        if not front:                           # swap corners 0 and 1 -> counter-clockwise
+            wx[0], wx[1] = wx[1], wx[0]
+            wy[0], wy[1] = wy[1], wy[0]
+            wz[0], wz[1] = wz[1], wz[0]
+            iw[0], iw[1] = iw[1], iw[0]
+            rx[0], rx[1] = rx[1], rx[0]
+            ry[0], ry[1] = ry[1], ry[0]
+            tri_i[t, _I_SWAP] = 1
+        # Bounding box in pixels, as setup_triangles computes it.
+        x_lo = np.ceil((min(rx[0], min(rx[1], rx[2])) - max_ox) / unit)
+        x_hi = np.floor((max(rx[0], max(rx[1], rx[2])) - min_ox) / unit)
+        y_lo = np.ceil((min(ry[0], min(ry[1], ry[2])) - max_oy) / unit)
+        y_hi = np.floor((max(ry[0], max(ry[1], ry[2])) - min_oy) / unit)
+        b0 = max(np.int64(min(max(x_lo, -1.0), float(width))), 0)
+        b1 = min(np.int64(min(max(x_hi, -1.0), float(width))), width - 1)
+        b2 = max(np.int64(min(max(y_lo, -1.0), float(height))), 0)
+        b3 = min(np.int64(min(max(y_hi, -1.0), float(height))), height - 1)
+        if b0 > b1 or b2 > b3:
+            continue
+        bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
+        for i in range(3):
+            j = (i + 1) % 3
+            x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
+            sign = 1
+            if x0 > x1 or (x0 == x1 and y0 > y1):
+                x0, y0, x1, y1 = x1, y1, x0, y0
+                sign = -1
+            a = (y0 - y1) * sign
+            b = (x1 - x0) * sign
+            tri_i[t, _I_A + i] = a
+            tri_i[t, _I_B + i] = b
+            tri_i[t, _I_X0 + i] = x0
+            tri_i[t, _I_Y0 + i] = y0
+            tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
+        tri_i[t, _I_VIS] = 1
+        for k in range(3):
+            tri_f[t, _F_X + k] = wx[k]
+            tri_f[t, _F_Y + k] = wy[k]
+            tri_f[t, _F_Z + k] = wz[k]
+            tri_f[t, _F_W + k] = iw[k]
+        dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
+        dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
+        det = dx1 * dy2 - dx2 * dy1
+        tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
+        tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
+    return tri_f, tri_i, bbox
+
+
+@numba.njit(cache=True)
+def _corner_values(values, swapped, indices, source, slot, fan_weights, visible):
+    """Attributes at the set-up corners: (T, 3, K) float64 for the visible
+    triangles, as the pipeline's ``einsum("tkj,tjc->tkc", w, values[vertices])``
+    with the clip weights (identity for a passed-through triangle) in set-up
+    corner order and the same sum order."""
+    n_k = values.shape[1]
+    out = np.zeros((source.shape[0], 3, n_k))
+    w = np.empty(3)
+    for v in range(visible.shape[0]):
+        t = visible[v]
+        i0, i1, i2 = indices[source[t], 0], indices[source[t], 1], indices[source[t], 2]
+        for k in range(3):
+            row = k
+            if swapped[t] and k < 2:
+                row = 1 - k
+            if slot[t] < 0:
+                for j in range(3):
+                    w[j] = 1.0 if j == row else 0.0
+            else:
+                for j in range(3):
+                    w[j] = fan_weights[slot[t], row, j]
+            for c in range(n_k):
+                out[t, k, c] = w[0] * values[i0, c] + w[1] * values[i1, c] + w[2] * values[i2, c]
+    return out
+
+
+# ----------------------------------------------------------------------------- binning
+
+
+@numba.njit(cache=True)
+def _bin(visible, bbox, tiles_x, tiles_y):
+    """Per-tile triangle lists in draw order: (bin_start (tiles + 1,), bin_tri (N,))."""
+    counts = np.zeros(tiles_x * tiles_y + 1, np.int64)
+    for v in range(visible.shape[0]):
+        t = visible[v]
+        for ty in range(bbox[t, 2] // TILE, bbox[t, 3] // TILE + 1):
+            for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE + 1):
+                counts[ty * tiles_x + tx + 1] += 1
+    start = np.cumsum(counts)
+    fill = start[:-1].copy()
+    out = np.empty(start[-1], np.int64)
+    for v in range(visible.shape[0]):
+        t = visible[v]
+        for ty in range(bbox[t, 2] // TILE, bbox[t, 3] // TILE + 1):
+            for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE + 1):
+                k = ty * tiles_x + tx
+                out[fill[k]] = t
+                fill[k] += 1
+    return start, out
+
+
+# ----------------------------------------------------------------------------- per pixel
+
+
+@numba.njit(cache=True, inline="always")
+def _inside(e, inclusive):
+    return e > 0 or (e == 0 and inclusive != 0)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _perspective_weights(tf, px, py, out):
+    """`interpolate.barycentric` then `interpolate.perspective_weights` at window
+    point (px, py), same operations in the same order; writes (3,) into out."""
+    e0 = (tf[_F_X + 2] - tf[_F_X + 1]) * (py - tf[_F_Y + 1]) - (tf[_F_Y + 2] - tf[_F_Y + 1]) * (px - tf[_F_X + 1])
+    e1 = (tf[_F_X + 0] - tf[_F_X + 2]) * (py - tf[_F_Y + 2]) - (tf[_F_Y + 0] - tf[_F_Y + 2]) * (px - tf[_F_X + 2])
+    e2 = (tf[_F_X + 1] - tf[_F_X + 0]) * (py - tf[_F_Y + 0]) - (tf[_F_Y + 1] - tf[_F_Y + 0]) * (px - tf[_F_X + 0])
+    total = e0 + e1 + e2
+    q0 = e0 / total * tf[_F_W + 0]
+    q1 = e1 / total * tf[_F_W + 1]
+    q2 = e2 / total * tf[_F_W + 2]
+    qs = q0 + q1 + q2
+    out[0] = q0 / qs
+    out[1] = q1 / qs
+    out[2] = q2 / qs
+
+
+@numba.njit(cache=True, inline="always")
+def _interp(w, values, c):
+    """``einsum("fi,fik->fk")`` for one fragment and channel c of (3, K) values."""
+    return w[0] * values[0, c] + w[1] * values[1, c] + w[2] * values[2, c]
+
+
+@numba.njit(cache=True, inline="always")
+def _wrap(i, size, mode):
+    if mode == 0:
+        return i % size
+    if mode == 1:
+        return min(max(i, 0), size - 1)
+    m = i % (2 * size)
+    return m if m < size else 2 * size - 1 - m
+
+
+@numba.njit(cache=True, inline="always")
+def _linear_fixed(s, size, mode):
+    """`texture.linear_addresses` with fixed8: (i0, i1, weight 0..255)."""
+    s32 = np.float32(s)
+    if mode == 0 and (size & (size - 1)) != 0:
+        f = s32 - np.float32(np.floor(s32))
+        fixed = np.int64(np.rint(np.float32(f * np.float32(size)) * np.float32(256))) - 128
+        weight = fixed & 255
+        i0 = fixed >> 8
+        if i0 < 0:
+            i0 = size - 1
+        i0 = min(i0, size - 1)
+        i1 = i0 + 1 if i0 != size - 1 else 0
+        return i0, i1, weight
+    fixed = np.int64(np.rint(np.float32(s32 * np.float32(size * 256)))) - 128
+    weight = fixed & 255
+    i0 = fixed >> 8
+    return _wrap(i0, size, mode), _wrap(i0 + 1, size, mode), weight
+
+
+@numba.njit(cache=True, inline="always")
+def _lerp8(w, a, b):
+    return a + ((w * (b - a) + 128) >> 8)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _filter_level(texels, table, level, s, t, image_filter, wrap_s, wrap_t, fixed8, out):
+    """`texture.filter_level` (gl) for one fragment: writes (4,) on the 0..255 scale."""
+    base, w, h = table[level, 0], table[level, 1], table[level, 2]
+    if image_filter == 0:
+        i = _wrap(np.int64(np.floor(np.float32(s) * np.float32(w))), w, wrap_s)
+        j = _wrap(np.int64(np.floor(np.float32(t) * np.float32(h))), h, wrap_t)
+        for c in range(4):
+            out[c] = texels[base + (j * w + i) * 4 + c]
+        return
+    if fixed8:
+        i0, i1, a = _linear_fixed(s, w, wrap_s)
+        j0, j1, b = _linear_fixed(t, h, wrap_t)
+        for c in range(4):
+            t00 = np.int64(texels[base + (j0 * w + i0) * 4 + c])
+            t10 = np.int64(texels[base + (j0 * w + i1) * 4 + c])
+            t01 = np.int64(texels[base + (j1 * w + i0) * 4 + c])
+            t11 = np.int64(texels[base + (j1 * w + i1) * 4 + c])
+            out[c] = _lerp8(b, _lerp8(a, t00, t10), _lerp8(a, t01, t11))
+        return
+    u = s * w - 0.5
+    v = t * h - 0.5
+    fu = np.floor(u)
+    fv = np.floor(v)
+    a = u - fu
+    b = v - fv
+    i0 = _wrap(np.int64(fu), w, wrap_s)
+    i1 = _wrap(np.int64(fu) + 1, w, wrap_s)
+    j0 = _wrap(np.int64(fv), h, wrap_t)
+    j1 = _wrap(np.int64(fv) + 1, h, wrap_t)
+    for c in range(4):
+        t00 = np.float64(texels[base + (j0 * w + i0) * 4 + c])
+        t10 = np.float64(texels[base + (j0 * w + i1) * 4 + c])
+        t01 = np.float64(texels[base + (j1 * w + i0) * 4 + c])
+        t11 = np.float64(texels[base + (j1 * w + i1) * 4 + c])
+        out[c] = (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11
+
+
+@numba.njit(cache=True, inline="always")
+def _nan_max(x, y):
+    """np.maximum: NaN if either is NaN."""
+    if x != x or y != y:
+        return x + y
+    return x if x >= y else y
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _sample_texture(params, texels, table, s, t, ddx_s, ddx_t, ddy_s, ddy_t, c0, c1):
+    """`texture.sample` (gl precision) for one fragment: writes (4,) float64 into c0."""
+    w32 = np.float32(table[0, 1])
+    h32 = np.float32(table[0, 2])
+    du0 = np.float32(ddx_s) * w32
+    du1 = np.float32(ddx_t) * h32
+    dv0 = np.float32(ddy_s) * w32
+    dv1 = np.float32(ddy_t) * h32
+    rho2 = _nan_max(du0 * du0 + du1 * du1, dv0 * dv0 + dv1 * dv1)      # float32
+    magnified = not (rho2 > 1)
+    last = params[_T_LEVELS] - 1
+    level0 = 0
+    level1 = 0
+    frac = 0.0
+    mip = params[_T_MIP]
+    if mip == 1:
+        e = math.frexp(np.float64(rho2))[1]             # exponent of the float32 value
+        level = np.int64(e) >> 1 if rho2 > 0 else 0
+        level0 = min(max(level, 0), last)
+        level1 = level0
+    elif mip == 2:
+        r = _nan_max(rho2, np.float32(np.finfo(np.float32).tiny))
+        m, e = math.frexp(np.float64(r))
+        m = np.float32(m)
+        log2 = np.float32(np.float32(e - 1) + (np.float32(2) * m - np.float32(1)))
+        lod = np.float32(0.5) * log2
+        ipart_f = np.float32(np.floor(lod))
+        frac = np.float64(np.float32(lod - ipart_f))
+        ipart = np.int64(ipart_f)
+        if ipart < 0 or ipart >= last:
+            frac = 0.0
+        level0 = min(max(ipart, 0), last)
+        level1 = min(max(ipart + 1, 0), last)
+    if magnified:
+        level0 = 0
+        image_filter = params[_T_MAG]
+    else:
+        image_filter = params[_T_MIN]
+    fixed8 = params[_T_FIXED] != 0
+    _filter_level(texels, table, level0, s, t, image_filter, params[_T_WS], params[_T_WT], fixed8, c0)
+    if not magnified and level1 != level0 and frac > 0:
+        _filter_level(texels, table, level1, s, t, image_filter, params[_T_WS], params[_T_WT], fixed8, c1)
+        if fixed8:
+            w8 = np.int64(np.floor(frac * 256))
+            for c in range(4):
+                c0[c] = _lerp8(w8, np.int64(c0[c]), np.int64(c1[c]))
+        else:
+            for c in range(4):
+                c0[c] = c0[c] + frac * (c1[c] - c0[c])
+    for c in range(4):
+        c0[c] = c0[c] / 255.0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _texel(tf, uv_t, px, py, w, tex_params, texels, table, scratch):
+    """The texture sample of pixel (px, py) with perspective weights w (3,) at its
+    centre: (s, t) there, per-quad derivatives (`interpolate.quad_derivatives`:
+    TL, TR, BL in float32) and `_sample_texture`; returns scratch[:4]."""
+    s = _interp(w, uv_t, 0)
+    t = _interp(w, uv_t, 1)
+    qx = np.float64(px & ~1) + 0.5
+    qy = np.float64(py & ~1) + 0.5
+    q = np.empty(3)
+    _perspective_weights(tf, qx, qy, q)
+    tl_s = np.float32(_interp(q, uv_t, 0))
+    tl_t = np.float32(_interp(q, uv_t, 1))
+    _perspective_weights(tf, qx + 1, qy, q)
+    ddx_s = np.float64(np.float32(_interp(q, uv_t, 0)) - tl_s)
+    ddx_t = np.float64(np.float32(_interp(q, uv_t, 1)) - tl_t)
+    _perspective_weights(tf, qx, qy + 1, q)
+    ddy_s = np.float64(np.float32(_interp(q, uv_t, 0)) - tl_s)
+    ddy_t = np.float64(np.float32(_interp(q, uv_t, 1)) - tl_t)
+    texel = scratch[:4]
+    _sample_texture(tex_params, texels, table, s, t, ddx_s, ddx_t, ddy_s, ddy_t, texel, scratch[4:])
+    return texel
+
+
+@numba.njit(cache=True, parallel=True)
+def clear(color, depth, clear_bytes):
+    """Fill the byte colour buffer (H, W, S, 4) with clear_bytes (4,) and depth with 1, rows in parallel."""
+    for y in numba.prange(color.shape[0]):
+        for x in range(color.shape[1]):
+            for s in range(color.shape[2]):
+                depth[y, x, s] = 1.0
+                for c in range(4):
+                    color[y, x, s, c] = clear_bytes[c]
+
+
+# ----------------------------------------------------------------------------- the tile kernel
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                offsets, positions, color, depth, depth_func, depth_write, blend,
+                tex_params, texels, table):
+    """Rasterize, shade and apply every binned triangle, tiles in parallel.
+
+    color : (H, W, S, 4) uint8, depth : (H, W, S) float64, updated in place.
+    The per-pixel arithmetic is `softras.pipeline`'s, operation for operation.
+    """
+    n_tiles = bin_start.shape[0] - 1
+    n_samples = offsets.shape[0]
+    full_mask = np.uint32((1 << n_samples) - 1)
+    min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
+    min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
+    write_z = depth_write and depth_func != 0
+    textured = tex_params[_T_ON] != 0
+    for tile in numba.prange(n_tiles):
+        tx0 = (tile % tiles_x) * TILE
+        ty0 = (tile // tiles_x) * TILE
+        tx1 = min(tx0 + TILE, width) - 1
+        ty1 = min(ty0 + TILE, height) - 1
+        w = np.empty(3)
+        rgba = np.empty(4)
+        src = np.empty(4)
+        dst = np.empty(4)
+        out = np.empty(4)
+        scratch = np.empty(8)
+        for j in range(bin_start[tile], bin_start[tile + 1]):
+            t = bin_tri[j]
+            tf = tri_f[t]
+            ti = tri_i[t]
+            colors_t = colors[t]
+            uv_t = uv[t] if textured else uv[0]
+            dx0, dy0 = tf[_F_X + 2] - tf[_F_X + 1], tf[_F_Y + 2] - tf[_F_Y + 1]
+            dx1, dy1 = tf[_F_X + 0] - tf[_F_X + 2], tf[_F_Y + 0] - tf[_F_Y + 2]
+            dx2, dy2 = tf[_F_X + 1] - tf[_F_X + 0], tf[_F_Y + 1] - tf[_F_Y + 0]
+            x_start = max(bbox[t, 0], tx0)
+            x_end = min(bbox[t, 1], tx1)
+            y_start = max(bbox[t, 2], ty0)
+            y_end = min(bbox[t, 3], ty1)
+            for by in range(y_start, y_end + 1, BLOCK):
+                by1 = min(by + BLOCK - 1, y_end)
+                for bx in range(x_start, x_end + 1, BLOCK):
+                    bx1 = min(bx + BLOCK - 1, x_end)
+                    x_lo = bx * 256 + min_ox
+                    x_hi = bx1 * 256 + max_ox
+                    y_lo = by * 256 + min_oy
+                    y_hi = by1 * 256 + max_oy
+                    outside = False
+                    all_in = True
+                    for i in range(3):
+                        a = ti[_I_A + i]
+                        b = ti[_I_B + i]
+                        ex = ti[_I_X0 + i]
+                        ey = ti[_I_Y0 + i]
+                        e00 = a * (x_lo - ex) + b * (y_lo - ey)
+                        e10 = a * (x_hi - ex) + b * (y_lo - ey)
+                        e01 = a * (x_lo - ex) + b * (y_hi - ey)
+                        e11 = a * (x_hi - ex) + b * (y_hi - ey)
+                        e_max = max(max(e00, e10), max(e01, e11))
+                        e_min = min(min(e00, e10), min(e01, e11))
+                        if not _inside(e_max, ti[_I_INC + i]):
+                            outside = True
+                            break
+                        if not _inside(e_min, ti[_I_INC + i]):
+                            all_in = False
+                    if outside:
+                        continue
+                    for py in range(by, by1 + 1):
+                        # The y terms of the barycentric edge functions at this row's
+                        # centres (`interpolate.barycentric`: the same products).
+                        cy = py + 0.5
+                        r0 = dx0 * (cy - tf[_F_Y + 1])
+                        r1 = dx1 * (cy - tf[_F_Y + 2])
+                        r2 = dx2 * (cy - tf[_F_Y + 0])
+                        for px in range(bx, bx1 + 1):
+                            if all_in:
+                                mask = full_mask
+                            else:
+                                mask = np.uint32(0)
+                                for s in range(n_samples):
+                                    sx = px * 256 + offsets[s, 0]
+                                    sy = py * 256 + offsets[s, 1]
+                                    if (_inside(ti[_I_A] * (sx - ti[_I_X0]) + ti[_I_B] * (sy - ti[_I_Y0]),
+                                                ti[_I_INC])
+                                            and _inside(ti[_I_A + 1] * (sx - ti[_I_X0 + 1])
+                                                        + ti[_I_B + 1] * (sy - ti[_I_Y0 + 1]), ti[_I_INC + 1])
+                                            and _inside(ti[_I_A + 2] * (sx - ti[_I_X0 + 2])
+                                                        + ti[_I_B + 2] * (sy - ti[_I_Y0 + 2]), ti[_I_INC + 2])):
+                                        mask |= np.uint32(1) << np.uint32(s)
+                            if mask == 0:
+                                continue
+                            shaded = False
+                            for s in range(n_samples):
+                                if not (mask >> s) & 1:
+                                    continue
+                                # Depth from the plane equation, rounded to 24 bits.
+                                zx = (px + positions[s, 0]) - tf[_F_X]
+                                zy = (py + positions[s, 1]) - tf[_F_Y]
+                                z = tf[_F_Z] + tf[_F_DZDX] * zx + tf[_F_DZDY] * zy
+                                z = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
+                                if not _depth_pass(depth_func, z, depth[py, px, s]):
+                                    continue
+                                if write_z:
+                                    depth[py, px, s] = z
+                                if not shaded:
+                                    # Perspective-correct colour at the pixel centre
+                                    # (`interpolate.barycentric`, `perspective_weights`).
+                                    cx = px + 0.5
+                                    e0 = r0 - dy0 * (cx - tf[_F_X + 1])
+                                    e1 = r1 - dy1 * (cx - tf[_F_X + 2])
+                                    e2 = r2 - dy2 * (cx - tf[_F_X + 0])
+                                    total = e0 + e1 + e2
+                                    q0 = e0 / total * tf[_F_W + 0]
+                                    q1 = e1 / total * tf[_F_W + 1]
+                                    q2 = e2 / total * tf[_F_W + 2]
+                                    qs = q0 + q1 + q2
+                                    w[0] = q0 / qs
+                                    w[1] = q1 / qs
+                                    w[2] = q2 / qs
+                                    # fragment.shade_unlit: premultiplied colour x texel.
+                                    alpha = _interp(w, colors_t, 3)
+                                    for c in range(3):
+                                        rgba[c] = _interp(w, colors_t, c) * alpha
+                                    rgba[3] = alpha
+                                    if textured:
+                                        texel = _texel(tf, uv_t, px, py, w, tex_params, texels, table, scratch)
+                                        for c in range(4):
+                                            rgba[c] = rgba[c] * texel[c]
+                                    for c in range(4):
+                                        src[c] = min(max(rgba[c], 0.0), 1.0)
+                                    shaded = True
+                                if blend == 0:
+                                    for c in range(4):
+                                        out[c] = src[c]
+                                else:
+                                    for c in range(4):
+                                        dst[c] = color[py, px, s, c] / 255.0
+                                    _blend(blend, src, dst, out)
+                                for c in range(4):
+                                    color[py, px, s, c] = np.uint8(np.rint(min(max(out[c], 0.0), 1.0) * 255.0))

@@ -1,0 +1,131 @@
+"""The gl fast path (softras.fastpath) returns the general pipeline's bytes exactly.
+
+Every scene in scenes/ is rendered at its own sample count and at 4x MSAA
+through both paths (``fast_path=False`` forces the stages of
+softras.pipeline); scenes the fast path does not support must say why.
+Seeded random scenes add what the conformance scenes do not stress: many
+overlapping triangles with every depth function and blend mode, triangles
+crossing every clip plane, both windings with culling, and textures with
+every filter and wrap mode.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import softras
+from softras import fastpath
+from softras.pipeline import render_scene
+
+SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
+
+
+def both_paths(scene, **options):
+    """(general, fast) images of one scene; fails unless the fast path takes it."""
+    samples = options.get("samples") or scene.samples
+    reason = fastpath.unsupported(scene, precision="gl", samples=samples, clipping=options.get("clipping"))
+    assert reason is None, reason
+    return (render_scene(scene, precision="gl", fast_path=False, **options),
+            render_scene(scene, precision="gl", **options))
+
+
+def assert_same(general, fast, what):
+    differ = (general != fast).any(axis=-1)
+    assert not differ.any(), (f"{what}: {int(differ.sum())} pixels differ, first at row/col "
+                              f"{np.argwhere(differ)[0].tolist()}")
+
+
+@pytest.mark.parametrize("samples", [None, 4])
+@pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
+def test_every_scene_is_bit_identical_or_dispatched(path, samples):
+    scene = softras.load_scene(path)
+    reason = fastpath.unsupported(scene, precision="gl", samples=samples or scene.samples, clipping=None)
+    if reason is not None:
+        # Dispatched to the general path: the reason names a feature the scene uses.
+        assert any(word in reason for word in ("lines", "shading", "normal_map", "bump_map", "texture",
+                                               "samples")), reason
+        return
+    assert_same(*both_paths(scene, samples=samples), f"{path.name} samples={samples}")
+
+
+def test_unsupported_options_take_the_general_path():
+    scene = softras.load_scene(SCENES[0])
+    assert fastpath.unsupported(scene, precision="exact", samples=1, clipping=None)
+    assert fastpath.unsupported(scene, precision="gl", samples=16, clipping=None)
+    assert fastpath.unsupported(scene, precision="gl", samples=1, clipping="guard_band")
+
+
+DEPTHS = ["less", "lequal", "equal", "greater", "gequal", "notequal", "always", "never", False]
+BLENDS = ["none", "over", "over_straight", "add", "subtract", "reverse_subtract", "min", "max"]
+
+
+def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: int = 75) -> dict:
+    """Overlapping random triangles in clip space (some crossing the frustum, w
+    from near 0 to 3), random colours with alpha, per-node depth / blend / cull."""
+    rng = np.random.default_rng(seed)
+    nodes = []
+    filters = ["nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
+               "nearest_mipmap_linear", "linear_mipmap_linear"]
+    textures = {}
+    if textured:
+        for k, (wrap_s, wrap_t) in enumerate([("repeat", "repeat"), ("clamp_to_edge", "mirrored_repeat"),
+                                              ("mirrored_repeat", "clamp_to_edge"), ("repeat", "clamp_to_edge")]):
+            textures[f"t{k}"] = {"procedural": "noise" if k % 2 else "checker", "size": [[16, 16], [13, 7],
+                                 [32, 5], [9, 9]][k], "wrap_s": wrap_s, "wrap_t": wrap_t,
+                                 "min_filter": filters[(seed + k) % 6], "mag_filter": ["nearest", "linear"][k % 2]}
+    for k in range(6):
+        n = int(rng.integers(1, 40))
+        # World positions around the camera's view: some cross the near
+        # (z > 2) and far (z < -1.5) planes and the sides of the frustum.
+        xyz = rng.uniform([-2.5, -2.0, -2.5], [2.5, 2.0, 2.4], size=(3 * n, 3))
+        mesh = {"positions": xyz.tolist(),
+                "indices": np.arange(3 * n).reshape(n, 3).tolist(),
+                "colors": rng.uniform(0, 1, size=(3 * n, 4)).round(3).tolist()}
+        node = {"name": f"n{k}", "mesh": mesh,
+                "depth_test": DEPTHS[int(rng.integers(len(DEPTHS)))],
+                "depth_write": bool(rng.integers(2)),
+                "blend": BLENDS[int(rng.integers(len(BLENDS)))],
+                "cull": ["none", "back", "front"][int(rng.integers(3))]}
+        if textured:
+            mesh["uvs"] = rng.uniform(-2, 3, size=(3 * n, 2)).tolist()
+            node["material"] = {"texture": f"t{int(rng.integers(4))}"}
+        nodes.append(node)
+    return {"softras_scene": 1, "width": width, "height": height,
+            "background": rng.uniform(0, 1, 4).round(2).tolist(), "textures": textures,
+            "camera": {"projection": "perspective", "fov_y": 70, "near": 0.5, "far": 4,
+                       "eye": [0, 0, 2.5], "target": [0, 0, 0]},
+            "nodes": nodes}
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("samples", [1, 4])
+def test_random_scenes_are_bit_identical(seed, samples):
+    scene = softras.load_scene(random_scene(seed))
+    assert_same(*both_paths(scene, samples=samples), f"random scene seed {seed}, {samples} samples")
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("fixed_point", [True, False])
+def test_random_textured_scenes_are_bit_identical(seed, fixed_point):
+    scene = softras.load_scene(random_scene(100 + seed, textured=True))
+    assert_same(*both_paths(scene, texture_fixed_point=fixed_point),
+                f"random textured scene seed {100 + seed}, fixed point {fixed_point}")
+
+
+def test_random_coverage_scenes_are_bit_identical():
+    """The piglit-style coverage scenes of tests/test_random_triangles.py."""
+    from test_random_triangles import coverage_scene, random_triangles
+    rng = np.random.default_rng(20261121)
+    for kind in ["pixel_centres", "pixel_corners", "subpixel", "slivers", "ties", "large"]:
+        for _ in range(4):
+            scene = softras.load_scene(coverage_scene(random_triangles(rng, 24, kind, 64, 48), 64, 48))
+            assert_same(*both_paths(scene), f"coverage scene {kind}")
+
+
+def test_bench_grid_is_bit_identical():
+    from softras import bench
+    scene = softras.load_scene(bench.grid_scene(40, 200))
+    assert_same(*both_paths(scene), "bench grid")
