@@ -188,4 +188,68 @@ def fan(count: int, radius: float = 1.0, angle: float = 360.0, center_color=None
     return MeshArrays(positions, indices, colors, normals, uvs)
 
 
+def vertex_tangents(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray,
+                    indices: np.ndarray) -> np.ndarray:
+    """Per-vertex tangent frames for normal and bump mapping, (N, 4) float64.
+
+    The standard per-triangle dP/du accumulation (Lengyel 2001): for a
+    triangle (p0, p1, p2) with uvs (s_k, t_k), edges ``e1 = p1 - p0``,
+    ``e2 = p2 - p0`` and ``(ds1, dt1)``, ``(ds2, dt2)`` their uv steps,
+
+        dP/ds = (e1 dt2 - e2 dt1) / D,   dP/dt = (e2 ds1 - e1 ds2) / D,
+        D = ds1 dt2 - ds2 dt1,
+
+    summed (unweighted) into the triangle's three vertices; triangles with
+    ``D == 0`` (no uv area) add nothing.  Each vertex then gets
+
+    - ``xyz``: the sum of dP/ds made perpendicular to the vertex normal and
+      normalised (Gram-Schmidt): ``T = normalize(S - N (N.S))``;
+    - ``w``: the handedness, +1 when ``cross(N, T)`` points along the summed
+      dP/dt, -1 where the uv map is mirrored (so that the bitangent
+      ``B = w cross(N, T)`` follows increasing t, i.e. DOWN the image, since
+      t = 0 is the top row of a texture).
+
+    A vertex with no usable tangent (all its triangles uv-degenerate, or
+    dP/ds parallel to N) gets ``normalize(cross(a, N))`` with ``a`` the
+    coordinate axis along N's smallest component (the first on ties), w = +1.
+
+    positions : (N, 3) model space; normals : (N, 3) model space (need not be
+    unit); uvs : (N, 2) (s, t); indices : (M, 3) int triangles.
+    Returns (N, 4) float64, model space: unit T (xyz) and w = +-1.
+    Both renderers use exactly these values (glref uploads them as the
+    vertex attribute ``in_tangent``).
+    """
+    positions = np.asarray(positions, np.float64)
+    n = np.asarray(normals, np.float64)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    uvs = np.asarray(uvs, np.float64)
+    indices = np.asarray(indices, np.int64).reshape(-1, 3)
+    p0, p1, p2 = (positions[indices[:, k]] for k in range(3))
+    w0, w1, w2 = (uvs[indices[:, k]] for k in range(3))
+    e1, e2 = p1 - p0, p2 - p0
+    d1, d2 = w1 - w0, w2 - w0
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    ok = det != 0
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+    dp_ds = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * inv              # (M, 3), zero where not ok
+    dp_dt = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * inv
+    s_sum = np.zeros_like(positions)
+    t_sum = np.zeros_like(positions)
+    for k in range(3):
+        np.add.at(s_sum, indices[:, k], dp_ds)
+        np.add.at(t_sum, indices[:, k], dp_dt)
+    tangent = s_sum - n * np.einsum("nk,nk->n", n, s_sum)[:, None]
+    length = np.linalg.norm(tangent, axis=1)
+    scale = np.maximum(np.linalg.norm(s_sum, axis=1), 1e-300)
+    bad = ~(length > 1e-12 * scale) | ~np.isfinite(length)
+    if np.any(bad):
+        axis = np.zeros((int(bad.sum()), 3))
+        axis[np.arange(len(axis)), np.argmin(np.abs(n[bad]), axis=1)] = 1.0
+        tangent[bad] = np.cross(axis, n[bad])
+        length[bad] = np.linalg.norm(tangent[bad], axis=1)
+    tangent = tangent / length[:, None]
+    handedness = np.where(np.einsum("nk,nk->n", np.cross(n, tangent), t_sum) < 0, -1.0, 1.0)
+    return np.concatenate([tangent, handedness[:, None]], axis=1)
+
+
 PROCEDURAL = {"grid": grid, "sphere": sphere, "fan": fan}

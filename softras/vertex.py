@@ -58,3 +58,14 @@ def world_normals(normals: np.ndarray, world: np.ndarray, unit: bool = True) -> 
     world matrix's 3x3 (normalised when ``unit``)."""
     n = normals @ np.linalg.inv(world[:3, :3])           # == (inv(M)^T @ n^T)^T
     return n / np.linalg.norm(n, axis=1, keepdims=True) if unit else n
+
+
+def world_tangents(tangents: np.ndarray, world: np.ndarray) -> np.ndarray:
+    """(N, 4) model tangents (xyz, handedness w) -> (N, 4) world tangents:
+    xyz by the world matrix's 3x3 M (tangents follow the surface, unlike
+    normals), not normalised; w times sign(det M), so that a mirroring world
+    matrix keeps ``B = w cross(N, T)`` pointing along the mapped bitangent."""
+    out = np.array(tangents, dtype=np.float64)
+    out[:, :3] = out[:, :3] @ world[:3, :3].T
+    out[:, 3] *= -1.0 if np.linalg.det(world[:3, :3]) < 0 else 1.0
+    return out
