@@ -7,6 +7,7 @@
 //   SHADING_GOURAUD  light each vertex here; the colour is interpolated
 //   SHADING_PHONG    pass world position and normal on; light each fragment
 //   NUM_LIGHTS n     number of lights (>= 1)
+//   NORMAL_MAP / BUMP_MAP  (with SHADING_PHONG) pass the world tangent and the uvs on
 
 uniform mat4 u_mvp;          // P @ V @ world (float64 on the CPU)
 uniform mat4 u_world;        // model -> world
@@ -20,9 +21,17 @@ in vec4 in_color;
 #ifndef SHADING_FLAT
 in vec3 in_normal;           // model space
 #endif
-#ifdef HAS_TEXTURE
+#if defined(HAS_TEXTURE) || defined(NORMAL_MAP) || defined(BUMP_MAP)
+#define HAS_UV 1
+#endif
+#ifdef HAS_UV
 in vec2 in_uv;
 out vec2 v_uv;
+#endif
+#if defined(NORMAL_MAP) || defined(BUMP_MAP)
+uniform float u_handedness;  // sign(det) of world's 3x3 (a mirror flips the bitangent)
+in vec4 in_tangent;          // model space: unit tangent (xyz), handedness w (softras.meshes.vertex_tangents)
+out vec4 v_tangent;          // world tangent (unnormalised), handedness
 #endif
 
 #ifdef SHADING_GOURAUD
@@ -53,7 +62,10 @@ void main() {
 #ifdef SHADING_PHONG
     v_normal = u_normal_matrix * in_normal;
 #endif
-#ifdef HAS_TEXTURE
+#ifdef HAS_UV
     v_uv = in_uv;
+#endif
+#if defined(NORMAL_MAP) || defined(BUMP_MAP)
+    v_tangent = vec4(mat3(u_world) * in_tangent.xyz, in_tangent.w * u_handedness);
 #endif
 }
