@@ -482,3 +482,74 @@ def test_conformance_scene_loads(path):
             assert -1e-12 <= draw.mesh.colors.min() and draw.mesh.colors.max() <= 1 + 1e-12
         if draw.material.texture is not None:
             assert draw.mesh.uvs is not None and draw.material.texture in scene.textures
+
+
+# --------------------------------------------------------------------------- normal, bump and displacement maps
+
+LIT_QUAD = {"procedural": "grid", "cols": 1, "rows": 1}      # normals and uvs
+HEIGHTS = {"h": {"procedural": "bumps", "size": [8, 8]}}
+
+
+def mapped(material, mesh=LIT_QUAD, textures=HEIGHTS):
+    """A scene whose one node has ``material`` and ``mesh``."""
+    return minimal(textures=copy.deepcopy(textures),
+                   nodes=[{"mesh": copy.deepcopy(mesh), "material": material}])
+
+
+BAD_MAPS = [
+    ("normal_map_on_gouraud", {"shading": "gouraud", "normal_map": "h"}, LIT_QUAD, "nodes[0].material.normal_map"),
+    ("bump_map_unlit", {"bump_map": "h"}, LIT_QUAD, "nodes[0].material.bump_map"),
+    ("normal_map_unknown_texture", {"shading": "phong", "normal_map": "wood"}, LIT_QUAD, "nodes[0].material.normal_map"),
+    ("normal_map_not_string", {"shading": "phong", "normal_map": 1}, LIT_QUAD, "nodes[0].material.normal_map"),
+    ("both_maps", {"shading": "phong", "normal_map": "h", "bump_map": "h"}, LIT_QUAD, "nodes[0].material.bump_map"),
+    ("bump_scale_without_map", {"shading": "phong", "bump_scale": 2}, LIT_QUAD, "nodes[0].material.bump_scale"),
+    ("bump_scale_nan", {"shading": "phong", "bump_map": "h", "bump_scale": float("nan")}, LIT_QUAD,
+     "nodes[0].material.bump_scale"),
+    ("bump_map_without_uvs", {"shading": "phong", "bump_map": "h"},
+     dict(TRIANGLE, normals=[[0, 0, 1]] * 3), "nodes[0].mesh"),
+    ("displacement_not_object", {"displacement": "h"}, LIT_QUAD, "nodes[0].material.displacement"),
+    ("displacement_missing_scale", {"displacement": {"texture": "h"}}, LIT_QUAD, "nodes[0].material.displacement.scale"),
+    ("displacement_unknown_key", {"displacement": {"texture": "h", "scale": 1, "bias": 0}}, LIT_QUAD,
+     "nodes[0].material.displacement.bias"),
+    ("displacement_unknown_texture", {"displacement": {"texture": "x", "scale": 1}}, LIT_QUAD,
+     "nodes[0].material.displacement.texture"),
+    ("displacement_scale_inf", {"displacement": {"texture": "h", "scale": float("inf")}}, LIT_QUAD,
+     "nodes[0].material.displacement.scale"),
+    ("displacement_without_normals", {"displacement": {"texture": "h", "scale": 1}},
+     dict(TRIANGLE, uvs=[[0, 0], [1, 0], [0, 1]]), "nodes[0].material.displacement"),
+    ("displacement_zero_normal", {"displacement": {"texture": "h", "scale": 1}},
+     dict(TRIANGLE, uvs=[[0, 0], [1, 0], [0, 1]], normals=[[0, 0, 1], [0, 0, 0], [0, 0, 1]]),
+     "nodes[0].material.displacement"),
+    ("displacement_of_lines", {"displacement": {"texture": "h", "scale": 1}},
+     {"primitive": "lines", "positions": [[0, 0, 0], [1, 0, 0]], "normals": [[0, 0, 1]] * 2, "uvs": [[0, 0]] * 2},
+     "nodes[0].material.displacement"),
+]
+
+
+@pytest.mark.parametrize("material, mesh, place", [case[1:] for case in BAD_MAPS], ids=[case[0] for case in BAD_MAPS])
+def test_bad_map_keys_report_their_place(material, mesh, place):
+    with pytest.raises(SceneError) as info:
+        load_scene(mapped(material, mesh))
+    message = str(info.value)
+    assert message.startswith(place + ": "), message
+    assert "\n" not in message
+
+
+def test_bumps_texture_cells_is_validated():
+    with pytest.raises(SceneError, match=r"^textures\.h\.cells: "):
+        load_scene(mapped({}, textures={"h": {"procedural": "bumps", "size": [8, 8], "cells": 0}}))
+    assert load_scene(mapped({}, textures=HEIGHTS)).textures["h"].params == {"cells": 4}
+
+
+def test_map_keys_are_stored_and_displacement_moves_the_mesh():
+    material = load_scene(mapped({"shading": "phong", "bump_map": "h", "bump_scale": 3})).draws[0].material
+    assert (material.bump_map, material.bump_scale, material.normal_map) == ("h", 3.0, None)
+    material = load_scene(mapped({"shading": "phong", "normal_map": "h"})).draws[0].material
+    assert (material.normal_map, material.bump_map, material.displacement) == ("h", None, None)
+    # A constant height 255 (bumps with 1 cell is 0 at the corners: use a gradient of one colour).
+    flat = {"h": {"procedural": "gradient", "size": [4, 4], "color0": [1, 1, 1, 1], "color1": [1, 1, 1, 1]}}
+    draw = load_scene(mapped({"displacement": {"texture": "h", "scale": 0.25}}, textures=flat)).draws[0]
+    assert (draw.material.displacement.texture, draw.material.displacement.scale) == ("h", 0.25)
+    np.testing.assert_allclose(draw.mesh.positions[:, 2], 0.25)
+    np.testing.assert_array_equal(draw.mesh.normals, np.tile([0.0, 0.0, 1.0], (4, 1)))
+    assert not draw.mesh.positions.flags.writeable
