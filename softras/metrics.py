@@ -31,6 +31,19 @@ glance:
 * ``d > T`` (bad): dark red, red, yellow, white, on a log scale of the excess,
   ``s = log(1 + d - T) / log(1 + 255 - T)``: one level over the threshold is
   already clearly red, 255 is white.
+
+Maps for the eye (:func:`error_map_image`): the SSIM map is shown as its
+dissimilarity ``clip(1 - ssim, 0, 1)`` and the FLIP map as FLIP's per-pixel
+error in [0, 1], both on the ramp black (no error), dark red, red, yellow,
+white (the largest error), with a square root so small errors stay visible.
+
+**FLIP** (:func:`flip`; Andersson et al. 2020, "FLIP: A Difference Evaluator
+for Alternating Images", NVIDIA) is a perceptual error: what a viewer notices
+when flipping between the two images. It is computed by the ``flip-evaluator``
+package (imported only when asked for: ``compare(..., flip=True)``), LDR mode,
+67 pixels per degree (FLIP's default viewing conditions), on the RGB channels
+read as sRGB -- what a PNG viewer shows. Our RGB is premultiplied, i.e. the
+image composited over black; alpha is not part of FLIP.
 """
 
 from __future__ import annotations
@@ -40,7 +53,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Comparison", "ShapeMismatch", "compare", "diff_heatmap"]
+__all__ = ["Comparison", "ShapeMismatch", "FlipUnavailable", "compare", "diff_heatmap",
+           "error_map_image", "flip", "pixel_difference"]
 
 _SSIM_WINDOW = 7
 
@@ -62,6 +76,10 @@ _BAD_COLOURS = np.array(
 
 class ShapeMismatch(ValueError):
     """The two images given to :func:`compare` differ in shape."""
+
+
+class FlipUnavailable(RuntimeError):
+    """The ``flip-evaluator`` package (FLIP) is not installed; one-line message."""
 
 
 @dataclass
@@ -92,6 +110,11 @@ class Comparison:
         channel difference (see the module docstring for the scale).
     ssim_map : numpy.ndarray
         ``float64`` ``(H, W)`` local SSIM, averaged over the channels.
+    flip_mean : float or None
+        Mean FLIP error in [0, 1] (0 = identical), when asked for
+        (``compare(..., flip=True)``), else None.
+    flip_map : numpy.ndarray or None
+        ``float32`` ``(H, W)`` per-pixel FLIP error in [0, 1], or None.
     """
 
     passed: bool
@@ -104,6 +127,8 @@ class Comparison:
     max_bad_fraction: float
     diff_image: np.ndarray = field(repr=False)
     ssim_map: np.ndarray = field(repr=False)
+    flip_mean: float | None = None
+    flip_map: np.ndarray | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict:
         """Return the scalar results as a JSON-serialisable dict.
@@ -113,10 +138,11 @@ class Comparison:
         dict
             Keys ``passed``, ``ssim``, ``max_diff``, ``bad_fraction``,
             ``bad_pixels``, ``total_pixels``, ``width``, ``height``,
-            ``threshold``, ``min_ssim``, ``max_bad_fraction``. No arrays.
+            ``threshold``, ``min_ssim``, ``max_bad_fraction``, and
+            ``flip_mean`` when FLIP was computed. No arrays.
         """
         height, width = self.diff_image.shape[:2]
-        return {
+        result = {
             "passed": bool(self.passed),
             "ssim": float(self.ssim),
             "max_diff": int(self.max_diff),
@@ -129,6 +155,9 @@ class Comparison:
             "min_ssim": float(self.min_ssim),
             "max_bad_fraction": float(self.max_bad_fraction),
         }
+        if self.flip_mean is not None:
+            result["flip_mean"] = float(self.flip_mean)
+        return result
 
     def summary(self) -> str:
         """Return a short human-readable summary, one line.
@@ -146,6 +175,7 @@ class Comparison:
             f"max diff {self.max_diff}/255  "
             f"bad pixels {self.bad_pixels}/{total} = {100 * self.bad_fraction:.3f}% "
             f"(> {self.threshold}/255; allowed {100 * self.max_bad_fraction:.3f}%)"
+            + ("" if self.flip_mean is None else f"  FLIP {self.flip_mean:.4f}")
         )
 
 
@@ -223,7 +253,93 @@ def diff_heatmap(diff: np.ndarray, threshold: int) -> np.ndarray:
     return image
 
 
-def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ssim: float = 0.99) -> Comparison:
+def pixel_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per-pixel largest absolute channel difference of two uint8 images.
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray
+        ``uint8`` ``(H, W, C)`` images of the same shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``int16`` ``(H, W)``, 0..255.
+    """
+    return np.abs(a.astype(np.int16) - b.astype(np.int16)).max(axis=-1)
+
+
+def error_map_image(error: np.ndarray) -> np.ndarray:
+    """Colour a per-pixel error in [0, 1] (0 = none) for the eye.
+
+    Parameters
+    ----------
+    error : numpy.ndarray
+        Float ``(H, W)``; values are clipped to [0, 1]. Use
+        ``1 - ssim_map`` for SSIM and the FLIP map as it is.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``uint8`` ``(H, W, 4)``, opaque: black for 0, then dark red, red,
+        yellow, white for 1, on ``sqrt(error)`` (small errors stay visible).
+    """
+    e = np.sqrt(np.clip(np.nan_to_num(np.asarray(error, dtype=np.float64)), 0.0, 1.0))
+    stops = np.array([0.0, 0.15, 0.45, 0.8, 1.0])
+    colours = np.array([[0, 0, 0], [110, 0, 0], [255, 0, 0], [255, 255, 0], [255, 255, 255]], dtype=np.float64)
+    image = np.empty(e.shape + (4,), dtype=np.uint8)
+    for c in range(3):
+        image[..., c] = np.rint(np.interp(e, stops, colours[:, c])).astype(np.uint8)
+    image[..., 3] = 255
+    return image
+
+
+def flip(reference, test) -> tuple[float, np.ndarray]:
+    """FLIP perceptual error between two images (see the module docstring).
+
+    Parameters
+    ----------
+    reference, test : numpy.ndarray
+        ``uint8`` ``(H, W, 4)``, ``(H, W, 3)`` or ``(H, W)`` images of the
+        same shape (float images: colour units, clamped to [0, 1]); the RGB
+        channels are used, read as sRGB.
+
+    Returns
+    -------
+    mean : float
+        Mean FLIP error in [0, 1], 0 for identical images.
+    error_map : numpy.ndarray
+        ``float32`` ``(H, W)`` per-pixel FLIP error in [0, 1].
+
+    Raises
+    ------
+    FlipUnavailable
+        If the ``flip-evaluator`` package is not installed.
+    """
+    try:
+        import flip_evaluator
+    except ImportError:
+        raise FlipUnavailable(
+            "FLIP needs the Python package flip-evaluator: pip install flip-evaluator"
+        ) from None
+    def unit(image) -> np.ndarray:  # uint8 -> [0, 1]; float (colour units) clamped to [0, 1]
+        array = np.asarray(image)
+        rgb = array[..., :3] if array.ndim == 3 else array
+        if array.dtype.kind == "f":
+            return np.ascontiguousarray(np.clip(rgb, 0.0, 1.0), dtype=np.float32)
+        return np.ascontiguousarray(rgb, dtype=np.float32) / np.float32(255)
+
+    ref, tst = unit(reference), unit(test)
+    if ref.ndim == 2:  # grey (H, W): FLIP wants colour channels
+        ref, tst = (np.repeat(x[..., None], 3, axis=-1) for x in (ref, tst))
+    if ref.shape[-1] == 1:
+        ref, tst = (np.repeat(x, 3, axis=-1) for x in (ref, tst))
+    error_map, mean, _ = flip_evaluator.evaluate(ref, tst, "LDR", applyMagma=False)
+    return float(mean), np.asarray(error_map, dtype=np.float32).reshape(ref.shape[:2])
+
+
+def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ssim: float = 0.99,
+            flip: bool = False) -> Comparison:
     """Compare two images with per-pixel tolerances and SSIM.
 
     Parameters
@@ -239,6 +355,10 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
         Largest allowed fraction of bad pixels, 0..1, default 0.001.
     min_ssim : float, optional
         Smallest allowed mean SSIM, -1..1, default 0.99.
+    flip : bool, optional
+        Also compute FLIP (:attr:`Comparison.flip_mean`,
+        :attr:`Comparison.flip_map`; ``b`` is the reference). Informative
+        only: FLIP does not enter ``passed``. Needs ``flip-evaluator``.
 
     Returns
     -------
@@ -251,6 +371,8 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
         If the images differ in shape (a subclass of ValueError).
     ValueError
         If an image is not uint8, or a tolerance is out of range.
+    FlipUnavailable
+        If ``flip=True`` and ``flip-evaluator`` is not installed.
     softras.imageio.ImageError
         If a path cannot be read as PNG (a subclass of ValueError).
 
@@ -275,11 +397,12 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
             f"vs {b.shape[1]}x{b.shape[0]}x{b.shape[2]} (width x height x channels)"
         )
 
-    pixel_diff = np.abs(a.astype(np.int16) - b.astype(np.int16)).max(axis=-1)
+    pixel_diff = pixel_difference(a, b)
     max_diff = int(pixel_diff.max())
     bad_pixels = int(np.count_nonzero(pixel_diff > threshold))
     bad_fraction = bad_pixels / pixel_diff.size
     ssim, ssim_map = _ssim(a, b)
+    flip_mean, flip_map = _flip(b, a) if flip else (None, None)
 
     passed = bad_fraction <= max_bad_fraction and ssim >= min_ssim
     return Comparison(
@@ -293,4 +416,10 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
         max_bad_fraction=float(max_bad_fraction),
         diff_image=diff_heatmap(pixel_diff, threshold),
         ssim_map=ssim_map,
+        flip_mean=flip_mean,
+        flip_map=flip_map,
     )
+
+
+_flip = flip  # compare()'s keyword ``flip`` shadows the function
+

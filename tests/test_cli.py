@@ -205,6 +205,52 @@ def test_compare_read_only_folder(tmp_path, capsys):
         folder.chmod(0o755)
 
 
+def test_compare_reports_flip_and_writes_ssim_and_flip_maps(tmp_path, capsys):
+    a = save(tmp_path / "a.png", image())
+    assert main(["compare", a, save(tmp_path / "same.png", image()), "--json"]) == 0   # identical: 0
+    same = json.loads(capsys.readouterr().out)
+    assert same["flip_mean"] == 0.0 and same["max_diff"] == 0 and same["ssim"] == pytest.approx(1.0)
+
+    changed = image()
+    changed[2:6, 3:9, :3] = 255 - changed[2:6, 3:9, :3]
+    b = save(tmp_path / "b.png", changed)
+    maps = {name: tmp_path / f"{name}.png" for name in ("diff", "ssim", "flip")}
+    assert main(["compare", a, b, "-o", str(maps["diff"]), "--ssim-map", str(maps["ssim"]),
+                 "--flip-map", str(maps["flip"]), "--json"]) == 1                     # differing: 1
+    data = json.loads(capsys.readouterr().out)
+    assert 0.0 < data["flip_mean"] <= 1.0 and data["bad_pixels"] == 24
+    assert sorted(data["outputs"]) == sorted(str(path) for path in maps.values())
+    for name, path in maps.items():
+        written = read_png(path).astype(int)
+        assert written.shape == (12, 16, 4)
+        # Bright inside the edit, dark far from it (FLIP's filters spread a few pixels).
+        assert written[4, 5, :3].sum() > 200 and written[11, 15, :3].sum() < 100, name
+    assert not read_png(maps["diff"])[11, 15, :3].any()
+    assert main(["compare", a, b]) == 1
+    assert "FLIP" in capsys.readouterr().out
+
+
+def test_compare_unreadable_input_writes_no_map(tmp_path, capsys):
+    a = save(tmp_path / "a.png", image())
+    broken = tmp_path / "broken.png"
+    broken.write_bytes(b"\x89PNG\r\n\x1a\n truncated")
+    maps = [tmp_path / "diff.png", tmp_path / "ssim.png", tmp_path / "flip.png"]
+    for other in (str(broken), str(tmp_path / "missing.png")):
+        assert main(["compare", a, other, "-o", str(maps[0]), "--ssim-map", str(maps[1]),
+                     "--flip-map", str(maps[2])]) == 2
+        assert Path(other).name in error_line(capsys)
+        assert not any(path.exists() for path in maps)
+
+
+def test_compare_without_flip_evaluator_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "flip_evaluator", None)  # import fails
+    a = save(tmp_path / "a.png", image())
+    diff = tmp_path / "diff.png"
+    assert main(["compare", a, a, "-o", str(diff)]) == 2
+    assert "pip install flip-evaluator" in error_line(capsys)
+    assert not diff.exists()
+
+
 def test_compare_options_for_scene_only(tmp_path, capsys):
     a = save(tmp_path / "a.png", image())
     assert main(["compare", a, a, "--out-dir", str(tmp_path / "o")]) == 2
