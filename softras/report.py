@@ -1,0 +1,257 @@
+"""The conformance report: an HTML page, results.json and JUnit XML.
+
+:func:`write_report` writes into a folder::
+
+    index.html          one page: a summary banner, a table of all scenes, then one
+                        section per scene with its pictures side by side
+    results.json        the run and every scene's verdict, reasons and figures
+    junit.xml           one <testcase> per scene (CI systems read it)
+    <scene>/*.png       soft, gl, diff, ssim, flip, ambiguity, where
+
+Failing scenes come first, then quality warnings, then passes, each marked
+with a coloured badge, so the page says at a glance which scene failed, where
+(the "where" picture: red pixels differ beyond the tolerance outside the
+ambiguity mask, cyan inside it) and why (the reasons, naming the stage).
+
+Every file is written atomically (:mod:`softras.imageio`); files of other
+scenes already in the folder are left alone.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+from pathlib import Path
+from xml.etree import ElementTree
+
+from softras.conformance import FAIL, PASS, VERDICT_NAMES, VERDICT_ORDER, WARN, SceneResult, counts
+
+__all__ = ["FORMAT", "IMAGE_CAPTIONS", "write_report", "results_json", "junit_xml", "index_html"]
+
+#: Version of results.json.
+FORMAT = 1
+
+#: The pictures of a scene, in the order shown, with their captions.
+IMAGE_CAPTIONS = {
+    "soft": "softras (precision gl)",
+    "gl": "GL (glref)",
+    "diff": "difference: blue within threshold, red to white beyond",
+    "where": "beyond tolerance: red outside the ambiguity mask, cyan inside",
+    "ssim": "SSIM map: 1 - SSIM, black = same structure",
+    "flip": "FLIP map: black = no visible difference",
+    "ambiguity": "ambiguity mask: coverage cyan, depth magenta, sampling yellow",
+}
+
+_COLOURS = {FAIL: "#c62828", WARN: "#ef8f00", PASS: "#2e7d32"}
+
+_CSS = """
+body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; background: #fafafa; }
+.banner { padding: 0.8em 1.2em; border-radius: 6px; color: white; font-size: 1.3em; }
+.badge { display: inline-block; padding: 0.1em 0.5em; border-radius: 4px; color: white;
+         font-weight: bold; font-size: 0.85em; }
+table.summary { border-collapse: collapse; margin: 1em 0; }
+table.summary td, table.summary th { padding: 0.25em 0.7em; border-bottom: 1px solid #ddd;
+                                     text-align: left; vertical-align: top; font-size: 0.9em; }
+section { background: white; margin: 1.2em 0; padding: 0.8em 1.2em; border-radius: 6px;
+          border-left: 8px solid #999; }
+section.fail { border-left-color: #c62828; background: #fff5f5; }
+section.warn { border-left-color: #ef8f00; background: #fffaf0; }
+section.pass { border-left-color: #2e7d32; }
+.pictures { display: flex; flex-wrap: wrap; gap: 0.6em; }
+figure { margin: 0; }
+figure img { image-rendering: pixelated; border: 1px solid #bbb; background: #888; }
+figcaption { font-size: 0.75em; max-width: 16em; color: #555; }
+ul.reasons li { margin: 0.2em 0; }
+.figures { font-size: 0.8em; color: #444; font-family: monospace; }
+"""
+
+
+def _image_paths(result: SceneResult) -> dict:
+    return {name: f"{result.name}/{name}.png" for name in IMAGE_CAPTIONS if name in result.images}
+
+
+def results_json(results: list[SceneResult], meta: dict) -> str:
+    """results.json: ``{"softras_conformance": 1, "summary": {...}, ..., "scenes": [...]}``.
+
+    ``summary`` has ``pass``, ``warn``, ``fail``, ``total`` and ``seconds``;
+    each scene is :meth:`SceneResult.to_dict` plus ``images`` (paths relative
+    to the report folder), in the order of the run.
+    """
+    scenes = []
+    for result in results:
+        entry = result.to_dict()
+        entry["images"] = _image_paths(result)
+        scenes.append(entry)
+    data = {"softras_conformance": FORMAT, "summary": counts(results) | {"seconds": meta.get("seconds")}}
+    data.update({key: value for key, value in meta.items() if key != "seconds"})
+    data["scenes"] = scenes
+    return json.dumps(data, indent=2) + "\n"
+
+
+def junit_xml(results: list[SceneResult], meta: dict) -> str:
+    """JUnit XML: one ``<testsuite name="softras conformance">``, one ``<testcase>`` per scene.
+
+    FAIL -> ``<failure>`` with the reasons; QUALITY WARNING -> a passing test
+    case with ``<properties><property name="verdict" value="quality_warning">``
+    and the reasons in ``<system-out>`` (JUnit has no warning state).
+    """
+    tally = counts(results)
+    suite = ElementTree.Element("testsuite", {
+        "name": "softras conformance", "tests": str(tally["total"]), "failures": str(tally[FAIL]),
+        "errors": "0", "skipped": "0", "time": f"{meta.get('seconds') or 0:.3f}"})
+    for result in results:
+        case = ElementTree.SubElement(suite, "testcase", {
+            "classname": "conformance", "name": result.name, "file": result.path,
+            "time": f"{result.seconds:.3f}"})
+        properties = ElementTree.SubElement(case, "properties")
+        verdict = {PASS: "pass", WARN: "quality_warning", FAIL: "fail"}[result.verdict]
+        ElementTree.SubElement(properties, "property", {"name": "verdict", "value": verdict})
+        text = "\n".join(result.reasons)
+        if result.verdict == FAIL:
+            failure = ElementTree.SubElement(case, "failure", {
+                "message": result.reasons[0] if result.reasons else "failed", "type": "conformance"})
+            failure.text = text
+        else:
+            ElementTree.SubElement(case, "system-out").text = f"{VERDICT_NAMES[result.verdict]}: {text}"
+    ElementTree.indent(suite)
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + ElementTree.tostring(suite, encoding="unicode") + "\n"
+
+
+def _figures_text(figures: dict) -> str:
+    keys = ("ssim", "max_diff", "bad_pixels", "bad_fraction", "flip_mean", "bad_outside_mask",
+            "bad_inside_mask", "differing_pixels", "coverage_mismatch_pixels", "ssim_excused")
+    parts = []
+    for key in keys:
+        if key in figures:
+            value = figures[key]
+            parts.append(f"{key} {value:.5g}" if isinstance(value, float) else f"{key} {value}")
+    if "ambiguous_pixels" in figures:
+        amb = figures["ambiguous_pixels"]
+        parts.append("ambiguous px " + ", ".join(f"{k} {v}" for k, v in amb.items()))
+    times = [f"{key.replace('_seconds', '')} {figures[key]:.2f} s" for key in
+             ("soft_seconds", "gl_seconds", "ambiguity_seconds") if key in figures]
+    if times:
+        parts.append("time " + ", ".join(times))
+    return " · ".join(parts)
+
+
+def _badge(verdict: str) -> str:
+    return f'<span class="badge" style="background:{_COLOURS[verdict]}">{VERDICT_NAMES[verdict]}</span>'
+
+
+def index_html(results: list[SceneResult], meta: dict) -> str:
+    """The report page (self-contained HTML, pictures referenced by relative path)."""
+    esc = html.escape
+    tally = counts(results)
+    ordered = sorted(results, key=lambda r: (VERDICT_ORDER[r.verdict], r.name))
+    worst = FAIL if tally[FAIL] else WARN if tally[WARN] else PASS
+    headline = {FAIL: f"{tally[FAIL]} of {tally['total']} scenes FAILED",
+                WARN: f"all {tally['total']} scenes conform, {tally[WARN]} with quality warnings",
+                PASS: f"all {tally['total']} scenes pass"}[worst]
+    seconds = meta.get("seconds")
+    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+           "<title>softras conformance</title>", f"<style>{_CSS}</style></head><body>",
+           "<h1>softras conformance report</h1>",
+           f'<div class="banner" style="background:{_COLOURS[worst]}">{esc(headline)}: '
+           f'{tally[PASS]} pass, {tally[WARN]} quality warning, {tally[FAIL]} fail'
+           + (f" &middot; {seconds:.1f} s" if seconds is not None else "") + "</div>"]
+    details = [f"GL: {esc(str(meta.get('gl_renderer')))}", f"jobs: {esc(str(meta.get('jobs')))}"]
+    if meta.get("shard"):
+        details.append(f"shard {esc(str(meta['shard']))}")
+    if meta.get("patterns"):
+        details.append("-k " + esc(" ".join(meta["patterns"])))
+    if meta.get("date"):
+        details.append(esc(str(meta["date"])))
+    out.append(f"<p>{' &middot; '.join(details)}</p>")
+    out.append("<p>Verdicts (dEQP's tiers): <b>PASS</b> = softras matches GL within the scene's tolerance "
+               "on every pixel; <b>QUALITY WARNING</b> = it does only once the pixels of the ambiguity mask "
+               "(answers that depend on implementation choices GL allows: coverage within sub-pixel "
+               "precision, depth ties, texel or mip rounding) are excused; <b>FAIL</b> = differences "
+               "beyond the tolerance where the answer is unambiguous. Images: row 0 = top; "
+               "x, y in the reasons count columns and rows from the top left.</p>")
+
+    out.append('<table class="summary"><tr><th>verdict</th><th>scene</th><th>why</th>'
+               "<th>SSIM</th><th>max diff</th><th>bad px</th><th>FLIP</th><th>time</th></tr>")
+    for result in ordered:
+        fig = result.figures
+        first = result.reasons[0] if result.reasons else ""
+        ssim = f"{fig['ssim']:.5f}" if "ssim" in fig else ""
+        flip = f"{fig['flip_mean']:.4f}" if "flip_mean" in fig else ""
+        out.append(f"<tr><td>{_badge(result.verdict)}</td><td><a href=\"#{esc(result.name)}\">"
+                   f"{esc(result.name)}</a></td><td>{esc(first)}</td><td>{ssim}</td>"
+                   f"<td>{fig.get('max_diff', '')}</td><td>{fig.get('bad_pixels', '')}</td><td>{flip}</td>"
+                   f"<td>{result.seconds:.2f} s</td></tr>")
+    out.append("</table>")
+
+    for result in ordered:
+        out.append(f'<section class="{result.verdict}" id="{esc(result.name)}">')
+        out.append(f"<h2>{_badge(result.verdict)} {esc(result.name)}</h2>")
+        out.append(f"<p><code>{esc(result.path)}</code>"
+                   + (f" &mdash; {esc(result.description)}" if result.description else "") + "</p>")
+        if result.tolerance:
+            t = result.tolerance
+            out.append(f"<p>Tolerance ({esc(result.tolerance_source)}): threshold {t['threshold']}/255, "
+                       f"bad pixels &le; {100 * t['max_bad_fraction']:.2f}%, SSIM &ge; {t['min_ssim']:g}</p>")
+        out.append('<ul class="reasons">' + "".join(f"<li>{esc(reason)}</li>" for reason in result.reasons)
+                   + "</ul>")
+        if result.figures:
+            out.append(f'<p class="figures">{esc(_figures_text(result.figures))}</p>')
+        pictures = _image_paths(result)
+        if pictures:
+            height, width = next(iter(result.images.values())).shape[:2]
+            scale = max(1.0, min(3.0, 256 / max(width, height)))
+            shown = max(1, round(width * scale)) if width * scale <= 320 else 320
+            out.append('<div class="pictures">')
+            for name, path in pictures.items():
+                out.append(f'<figure><a href="{esc(path)}"><img src="{esc(path)}" width="{shown}" '
+                           f'alt="{esc(name)}"></a><figcaption><b>{esc(name)}</b>: '
+                           f"{esc(IMAGE_CAPTIONS[name])}</figcaption></figure>")
+            out.append("</div>")
+        out.append("</section>")
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
+def _folder_name(result: SceneResult, taken: set) -> str:
+    name = result.name
+    suffix = 2
+    while name in taken:
+        name = f"{result.name}-{suffix}"
+        suffix += 1
+    taken.add(name)
+    return name
+
+
+def write_report(folder: str | os.PathLike, results: list[SceneResult], meta: dict) -> Path:
+    """Write the report into ``folder`` (created if needed); returns index.html's path.
+
+    Parameters
+    ----------
+    folder : path
+        The report folder.
+    results : list of SceneResult
+        From :func:`softras.conformance.run`. Two scenes with the same name
+        (from different folders) get ``name-2`` and so on for their pictures.
+    meta : dict
+        About the run: ``seconds``, ``jobs``, ``gl_renderer``, ``shard``,
+        ``patterns``, ``date`` (any JSON-able values; stored in results.json).
+    """
+    from softras.imageio import write_png_atomic, write_text_atomic
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    taken: set = set()
+    for result in results:
+        result.name = _folder_name(result, taken)
+        if not result.images:
+            continue
+        (folder / result.name).mkdir(exist_ok=True)
+        for name in IMAGE_CAPTIONS:
+            if name in result.images:
+                write_png_atomic(folder / result.name / f"{name}.png", result.images[name])
+    write_text_atomic(folder / "results.json", results_json(results, meta))
+    write_text_atomic(folder / "junit.xml", junit_xml(results, meta))
+    index = folder / "index.html"
+    write_text_atomic(index, index_html(results, meta))
+    return index
