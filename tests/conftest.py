@@ -17,6 +17,23 @@ REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "scenes"
 
 
+def pytest_addoption(parser):
+    parser.addoption("--update-golden", action="store_true", default=False,
+                     help="before the tests, re-render golden/ from glref: the same code as "
+                          "'softras golden --update' (all scenes, all or nothing)")
+
+
+def pytest_sessionstart(session):
+    """``pytest --update-golden`` runs ``softras golden --update`` first, then the tests."""
+    if not session.config.getoption("--update-golden", default=False):
+        return
+    from softras.cli import main
+
+    status = main(["golden", "--update"])
+    if status != 0:
+        pytest.exit(f"softras golden --update failed (exit status {status})", returncode=status)
+
+
 @pytest.fixture(autouse=True)
 def _require_gl(request):
     if request.node.get_closest_marker("gl") is None:

@@ -316,3 +316,91 @@ def test_repository_golden_images_verify(tmp_path):
         if result.images:
             write_failure_images(tmp_path / Path(result.golden).stem, **result.images)
     assert not failed, "\n".join(r.line() for r in failed) + f"\nimages under {tmp_path}"
+
+
+@pytest.mark.gl
+def test_one_pixel_change_in_the_gl_render_is_caught(scenes, tmp_path, monkeypatch):
+    golden_dir = tmp_path / "golden"
+    golden.update(scenes, golden_dir)
+    real = golden._render_gl
+
+    def one_pixel_off(scene):
+        image = real(scene).copy()
+        image[0, 0, 2] ^= 0x01
+        return image
+
+    monkeypatch.setattr(golden, "_render_gl", one_pixel_off)
+    results = by_name(golden.verify(scenes, golden_dir))
+    for result in results.values():
+        assert not result.passed and result.hash_ok is True and result.gl_diff_pixels == 1
+        assert any("1 pixel differ" in message for message in result.failures)
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("where", ["manifest", "swap"])
+def test_update_interrupted_late_leaves_golden_as_it_was(scenes, tmp_path, monkeypatch, where):
+    """Interrupted (Ctrl-C) after every image is rendered: writing the manifest, or the swap itself."""
+    golden_dir = tmp_path / "golden"
+    golden.update(scenes, golden_dir)
+    before = snapshot(golden_dir)
+    recoloured = copy.deepcopy(QUADS)
+    recoloured["background"] = [1, 1, 1, 1]
+    write_scene(scenes[0].parent, "quads", recoloured)
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    if where == "manifest":
+        monkeypatch.setattr(golden, "_manifest_text", interrupt)
+    else:
+        # No atomic exchange: the old folder is renamed aside, then the new one
+        # into place -- which is interrupted; the old folder must come back.
+        monkeypatch.setattr(golden, "_exchange", lambda a, b: False)
+        real_rename = golden.os.rename
+        interrupted = []
+
+        def rename(src, dst):
+            if Path(dst) == golden_dir and Path(src).name.startswith(".golden.new-") and not interrupted:
+                interrupted.append(src)
+                raise KeyboardInterrupt
+            return real_rename(src, dst)
+
+        monkeypatch.setattr(golden.os, "rename", rename)
+    with pytest.raises(KeyboardInterrupt):
+        golden.update(scenes, golden_dir, prune=True)
+    monkeypatch.undo()
+    if where == "swap":
+        assert interrupted  # the interruption hit the rename of the new folder into place
+    assert snapshot(golden_dir) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["golden", "scenes"]
+
+
+def test_pytest_update_golden_option_runs_softras_golden_update(monkeypatch, capsys):
+    """``pytest --update-golden`` (tests/conftest.py) calls the code of ``softras golden --update``."""
+    import conftest
+
+    calls = []
+
+    def update(paths, golden_dir=None, *, prune=False, on_change=None):
+        calls.append((list(paths), Path(golden_dir), prune))
+        return []
+
+    monkeypatch.setattr(golden, "update", update)
+
+    class Config:
+        def __init__(self, value):
+            self.value = value
+
+        def getoption(self, name, default=None):
+            assert name == "--update-golden"
+            return self.value
+
+    class Session:
+        def __init__(self, value):
+            self.config = Config(value)
+
+    conftest.pytest_sessionstart(Session(False))
+    assert calls == []
+    conftest.pytest_sessionstart(Session(True))
+    assert calls == [(golden.default_scenes(), golden.GOLDEN_DIR, True)]
+    assert "golden update" in capsys.readouterr().out
