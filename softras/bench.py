@@ -1,34 +1,82 @@
 """``softras bench``: speed and error of softras's quality levels against glref.
 
-Every figure is measured in one process, warm (one untimed render first),
-as the median of several runs, with glref timed on the same scene in the same
-run, so ratios are comparable on a noisy machine.  Error is measured against
-a ground truth rendered by softras itself at the highest quality the scene
-allows (exact precision, 4x MSAA positions); for each level we report the
-mean absolute difference (in /255) and the fraction of pixels off by more
-than 2/255.
+What is measured
+----------------
+Every figure is taken in one process, warm (one untimed render first, so
+kernels are compiled and caches filled), as the median of ``runs`` timed
+renders, with glref timed on the same scene in the same run, so the ratios
+are comparable on a noisy machine.  A render is timed end to end from the
+loaded `Scene` to the image (``softras.render(scene, **options)``; for glref
+``softras.render(scene, backend="gl")``, which includes its upload and
+readback).
 
-The scenes are generated here (a tessellated, perspective-tilted grid), so
-their size can be scaled: triangles from 1k to 1M (``--max-triangles``) and
-pixels from 256^2 to 2048^2 (``--max-side``).  The cost growth is fitted as
-``time ~ n^k`` by least squares on log-log; k near 1 is linear.
+Error is measured against a ground truth rendered by softras itself:
+``precision="exact"`` with 16 samples per pixel on a rotated grid
+(`TRUTH`).  For each level we report the mean absolute difference (per
+channel, in /255) and the fraction of pixels with a channel off by more than
+2/255.  The truth level itself therefore has error 0 by construction; its
+row still gives its cost.
+
+Memory: ``peak_mib`` is the peak of Python-tracked allocations during one
+extra (untimed) render, measured with ``tracemalloc``: numpy arrays and
+Python objects, including every array the pipeline and the fast path create
+from Python.  Arrays allocated *inside* numba kernels (numba's own
+allocator) are not included; they are the kernels' small per-tile scratch
+and the set-up tables (about 250 bytes per triangle).  ``rss_mib`` is the
+process's peak resident set size so far (``resource.getrusage``, monotone,
+process-wide: it includes glref and every earlier scene).
+
+Levels and scenes
+-----------------
+`LEVELS` is the table of quality levels: one line each (name, render
+options, which scenes it applies to, whether the quick run includes it).
+Options a renderer does not know make a level "n/a" on that build, not an
+error.  `SCENES` are generated here: many small triangles (a tessellated,
+perspective-tilted vertex-coloured grid), few large ones, a trilinear
+textured floor, 4x MSAA, translucent layers blended "over"; the scaling
+sweeps vary triangles (1k to 1M) at 512^2 and pixels (256^2 to 2048^2) at
+about 2k triangles, gl level only, and fit ``time ~ n^k`` by least squares
+on log-log (k near 1 is linear).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import resource
 import statistics
 import time
-from dataclasses import asdict, dataclass
+import tracemalloc
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-LEVELS = {
-    "gl": {"precision": "gl"},
-    "exact": {"precision": "exact"},
-    "gl_msaa4": {"precision": "gl", "samples": 4},
-}
+
+@dataclass(frozen=True)
+class Level:
+    """One quality level: softras render options, and where it applies."""
+
+    name: str
+    options: dict
+    description: str
+    textured_only: bool = False       # only meaningful on scenes with a texture
+    quick: bool = True                # part of the default (quick) run
+    max_pixels: int = 1 << 22         # skip on larger images (memory / time)
+
+
+TRUTH = {"precision": "exact", "samples": 16, "pattern": "rotated_grid"}
+
+LEVELS = [
+    Level("gl", {"precision": "gl"}, "gl precision at the scene's samples (llvmpipe bit for bit)"),
+    Level("exact", {"precision": "exact"}, "float64, unsnapped, the scene's samples"),
+    Level("gl_msaa4", {"precision": "gl", "samples": 4}, "gl precision, llvmpipe's 4x MSAA"),
+    Level("exact_16", TRUTH, "exact, 16 samples, rotated grid (the ground truth)", max_pixels=1 << 20),
+    Level("exact_64", {"precision": "exact", "samples": 64, "pattern": "rotated_grid"},
+          "exact, 64 samples, rotated grid", quick=False, max_pixels=1 << 18),
+    Level("gl_ripmap", {"precision": "gl", "texture_filter": "ripmap"}, "ripmap texture filter",
+          textured_only=True),
+    Level("gl_ewa", {"precision": "gl", "texture_filter": "ewa"}, "EWA texture filter", textured_only=True),
+]
 
 
 @dataclass
@@ -37,13 +85,19 @@ class Row:
     triangles: int
     pixels: int
     level: str
-    seconds: float
+    seconds: float | None
     glref_seconds: float
-    ratio: float            # softras time / glref time (lower is better, <= 1 beats GL)
-    mtri_per_s: float
-    mpix_per_s: float
-    mean_error: float       # mean |soft - truth| per channel, in /255
-    bad_fraction: float     # pixels with a channel off by > 2/255
+    ratio: float | None          # softras time / glref time (lower is better, <= 1 beats GL)
+    mtri_per_s: float | None
+    mpix_per_s: float | None
+    mean_error: float | None     # mean |soft - truth| per channel, in /255
+    bad_fraction: float | None   # pixels with a channel off by > 2/255
+    peak_mib: float | None       # tracemalloc peak of one render (see the module docstring)
+    rss_mib: float               # process peak RSS so far
+    note: str = ""
+
+
+# ----------------------------------------------------------------------------- scenes
 
 
 def grid_scene(cols: int, side: int, samples: int = 1) -> dict:
@@ -58,6 +112,73 @@ def grid_scene(cols: int, side: int, samples: int = 1) -> dict:
     }
 
 
+def floor_scene(side: int, anisotropy: float = 1) -> dict:
+    """A checker floor (256^2 texels, linear_mipmap_linear) receding to the horizon: 2 triangles."""
+    return {
+        "softras_scene": 1, "width": side, "height": side, "background": [0.1, 0.1, 0.2, 1],
+        "camera": {"projection": "perspective", "fov_y": 60, "near": 0.1, "far": 100,
+                   "eye": [0, 1.0, 3], "target": [0, 0, -3]},
+        "textures": {"checker": {"procedural": "checker", "size": [256, 256], "squares": 16,
+                                 "color0": [0.9, 0.9, 0.85, 1], "color1": [0.15, 0.2, 0.6, 1],
+                                 "min_filter": "linear_mipmap_linear", "mag_filter": "linear",
+                                 "max_anisotropy": anisotropy}},
+        "nodes": [{"name": "floor", "rotate": [-90, 1, 0, 0], "translate": [0, 0, -6],
+                   "mesh": {"positions": [[-3, -12, 0], [3, -12, 0], [3, 12, 0], [-3, 12, 0]],
+                            "indices": [[0, 1, 2], [0, 2, 3]],
+                            "uvs": [[0, 8], [1.5, 8], [1.5, 0], [0, 0]]},
+                   "material": {"texture": "checker"}}],
+    }
+
+
+def blended_scene(side: int, layers: int = 8, cols: int = 8) -> dict:
+    """``layers`` translucent tilted grids (2*cols^2 triangles each) blended "over", no depth test."""
+    nodes = []
+    for k in range(layers):
+        a = 0.25 + 0.5 * k / max(1, layers - 1)
+        nodes.append({"name": f"layer{k}", "rotate": [-20 + 5 * k, 1, 0.3, 0], "translate": [0, 0, -0.1 * k],
+                      "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [2.2, 2.2],
+                               "corner_colors": [[1, 0, 0, a], [0, 1, 0, a], [0, 0, 1, a], [1, 1, 1, a]]},
+                      "blend": "over", "depth_test": False})
+    return {"softras_scene": 1, "width": side, "height": side, "background": [0, 0, 0, 1],
+            "camera": {"projection": "perspective", "fov_y": 50, "near": 0.1, "far": 100,
+                       "eye": [0, 0, 2.6], "target": [0, 0, 0]},
+            "nodes": nodes}
+
+
+@dataclass(frozen=True)
+class BenchScene:
+    name: str
+    scene: dict
+    quick: bool = True
+    levels: bool = True          # all levels with errors; False: gl level only, no error (sweeps)
+    series: str = ""             # "triangles" or "pixels" for the scaling fits
+
+
+def scenes(full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2048) -> list[BenchScene]:
+    """The fixed benchmark set (quick subset, or everything with ``full``)."""
+    out = [
+        BenchScene("many_small_24k_512", grid_scene(110, 512)),
+        BenchScene("few_large_512", grid_scene(2, 512)),
+        BenchScene("floor_trilinear_512", floor_scene(512)),
+        BenchScene("floor_aniso16_512", floor_scene(512, anisotropy=16), quick=False),
+        BenchScene("msaa4_24k_512", grid_scene(110, 512, samples=4)),
+        BenchScene("blended_8x128_512", blended_scene(512)),
+    ]
+    for triangles in (1_000, 10_000, 100_000, 1_000_000):
+        if triangles <= max_triangles:
+            cols = round(math.sqrt(triangles / 2))
+            out.append(BenchScene(f"scale_tris_{2 * cols * cols}", grid_scene(cols, 512),
+                                  quick=triangles <= 100_000, levels=False, series="triangles"))
+    for side in (256, 512, 1024, 2048):
+        if side <= max_side:
+            out.append(BenchScene(f"scale_pixels_{side}", grid_scene(32, side), quick=side <= 1024,
+                                  levels=False, series="pixels"))
+    return [s for s in out if full or s.quick]
+
+
+# ----------------------------------------------------------------------------- measuring
+
+
 def _median_time(fn, runs: int) -> tuple[float, object]:
     result = fn()                      # warm: kernels compiled, caches filled
     times = []
@@ -68,22 +189,65 @@ def _median_time(fn, runs: int) -> tuple[float, object]:
     return statistics.median(times), result
 
 
-def measure(name: str, scene_dict: dict, runs: int, levels=LEVELS) -> list[Row]:
-    """Time glref and each softras level on one scene; error against exact 4x."""
+def _peak_mib(fn) -> float:
+    """tracemalloc peak (MiB) of Python-tracked allocations during fn()."""
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1] / 2**20
+    finally:
+        tracemalloc.stop()
+
+
+def _rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0     # KiB on Linux
+
+
+def applicable(level: Level, scene, full: bool) -> bool:
+    """Whether a level is measured on a loaded scene."""
+    if not (full or level.quick):
+        return False
+    if level.textured_only and not any(d.material.texture is not None for d in scene.draws):
+        return False
+    return scene.width * scene.height <= level.max_pixels
+
+
+def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool = True,
+            full: bool = False, memory: bool = True) -> list[Row]:
+    """Time glref and each applicable softras level on one scene.
+
+    levels : a list of `Level` (default `LEVELS`) or a dict name -> options.
+    errors : compare each level with the `TRUTH` rendering.
+    """
     import softras
 
+    if levels is None:
+        levels = LEVELS
+    if isinstance(levels, dict):
+        levels = [Level(k, v, k) for k, v in levels.items()]
     scene = softras.load_scene(scene_dict)
     triangles = sum(len(d.mesh.indices) for d in scene.draws)
     pixels = scene.width * scene.height
     gl_seconds, _ = _median_time(lambda: softras.render(scene, backend="gl"), runs)
-    truth = softras.render(scene, precision="exact", samples=4).astype(float)
+    truth = softras.render(scene, **TRUTH).astype(float) if errors else None
     rows = []
-    for level, options in levels.items():
-        seconds, image = _median_time(lambda: softras.render(scene, **options), runs)
-        diff = np.abs(image.astype(float) - truth)
-        rows.append(Row(name, triangles, pixels, level, seconds, gl_seconds, seconds / gl_seconds,
-                        triangles / seconds / 1e6, pixels / seconds / 1e6,
-                        float(diff.mean()), float((diff.max(axis=2) > 2).mean())))
+    for level in levels:
+        if not applicable(level, scene, full):
+            continue
+        try:
+            seconds, image = _median_time(lambda: softras.render(scene, **level.options), runs)
+        except (TypeError, ValueError, NotImplementedError) as error:
+            rows.append(Row(name, triangles, pixels, level.name, None, gl_seconds, None, None, None, None,
+                            None, None, _rss_mib(), note=f"n/a: {error}"))
+            continue
+        peak = _peak_mib(lambda: softras.render(scene, **level.options)) if memory else None
+        mean_error = bad = None
+        if truth is not None:
+            diff = np.abs(image.astype(float) - truth)
+            mean_error = float(diff.mean())
+            bad = float((diff.max(axis=2) > 2).mean())
+        rows.append(Row(name, triangles, pixels, level.name, seconds, gl_seconds, seconds / gl_seconds,
+                        triangles / seconds / 1e6, pixels / seconds / 1e6, mean_error, bad, peak, _rss_mib()))
     return rows
 
 
@@ -93,47 +257,91 @@ def fit_exponent(sizes, seconds) -> float:
     return float(np.polyfit(x, y, 1)[0])
 
 
-def run(runs: int = 5, max_triangles: int = 100_000, max_side: int = 1024, out_json: str | None = None,
-        echo=print) -> dict:
+def _fmt(value, spec: str, width: int) -> str:
+    return format(value, spec).rjust(width) if value is not None else "-".rjust(width)
+
+
+def format_row(r: Row) -> str:
+    return (f"{r.scene:22s} {r.triangles:8d} {r.pixels:8d} {r.level:10s} {_fmt(r.seconds and r.seconds * 1e3, '.1f', 9)} "
+            f"{r.glref_seconds * 1e3:8.1f} {_fmt(r.ratio, '.2f', 7)} {_fmt(r.mtri_per_s, '.2f', 8)} "
+            f"{_fmt(r.mpix_per_s, '.1f', 7)} {_fmt(r.mean_error, '.3f', 8)} {_fmt(r.bad_fraction, '.4f', 7)} "
+            f"{_fmt(r.peak_mib, '.1f', 8)} {r.rss_mib:7.0f}" + (f"  {r.note}" if r.note else ""))
+
+
+HEADER = (f"{'scene':22s} {'tris':>8s} {'pixels':>8s} {'level':10s} {'soft ms':>9s} {'gl ms':>8s} "
+          f"{'ratio':>7s} {'Mtri/s':>8s} {'Mpix/s':>7s} {'err/255':>8s} {'bad':>7s} {'peakMiB':>8s} {'rssMiB':>7s}")
+
+
+def run(runs: int = 3, full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2048,
+        out_json: str | None = None, out_plot: str | None = None, echo=print) -> dict:
     """Run the benchmark set, print a table, return (and optionally write) the figures."""
     rows: list[Row] = []
-    header = (f"{'scene':18s} {'tris':>8s} {'pixels':>9s} {'level':9s} {'soft ms':>9s} {'gl ms':>8s} "
-              f"{'ratio':>7s} {'Mtri/s':>7s} {'Mpix/s':>7s} {'err/255':>8s} {'bad':>7s}")
-    echo(header)
-
-    def emit(new_rows):
-        for r in new_rows:
-            echo(f"{r.scene:18s} {r.triangles:8d} {r.pixels:9d} {r.level:9s} {r.seconds * 1e3:9.1f} "
-                 f"{r.glref_seconds * 1e3:8.1f} {r.ratio:7.1f} {r.mtri_per_s:7.2f} {r.mpix_per_s:7.1f} "
-                 f"{r.mean_error:8.3f} {r.bad_fraction:7.4f}")
-        rows.extend(new_rows)
-
-    emit(measure("grid_24k_512", grid_scene(110, 512), runs))
-    emit(measure("few_large_512", grid_scene(2, 512), runs))
-
-    # Scaling in triangles at 512^2 and in pixels at ~2k triangles, gl level only.
-    tri_sizes, tri_times = [], []
-    cols = 23
-    while 2 * cols * cols <= max_triangles:
-        r = measure(f"scale_tris_{2 * cols * cols}", grid_scene(cols, 512), runs, {"gl": LEVELS["gl"]})
-        emit(r)
-        tri_sizes.append(r[0].triangles)
-        tri_times.append(r[0].seconds)
-        cols = int(cols * math.sqrt(10))
-    pix_sizes, pix_times = [], []
-    side = 256
-    while side <= max_side:
-        r = measure(f"scale_pixels_{side}", grid_scene(32, side), runs, {"gl": LEVELS["gl"]})
-        emit(r)
-        pix_sizes.append(r[0].pixels)
-        pix_times.append(r[0].seconds)
-        side *= 2
-    fits = {"triangles_exponent": fit_exponent(tri_sizes, tri_times) if len(tri_sizes) > 1 else None,
-            "pixels_exponent": fit_exponent(pix_sizes, pix_times) if len(pix_sizes) > 1 else None}
-    echo(f"cost ~ triangles^{fits['triangles_exponent']:.2f}, ~ pixels^{fits['pixels_exponent']:.2f} "
-         "(1.0 = linear)" if None not in fits.values() else f"fits: {fits}")
-    report = {"rows": [asdict(r) for r in rows], "fits": fits, "runs": runs}
+    echo(HEADER)
+    series: dict[str, list[tuple[int, float]]] = {"triangles": [], "pixels": []}
+    for bench_scene in scenes(full, max_triangles, max_side):
+        if bench_scene.levels:
+            new = measure(bench_scene.name, bench_scene.scene, runs, LEVELS, errors=True, full=full)
+        else:
+            new = measure(bench_scene.name, bench_scene.scene, runs, [LEVELS[0]], errors=False, full=full,
+                          memory=False)
+        for r in new:
+            echo(format_row(r))
+        rows.extend(new)
+        if bench_scene.series and new and new[0].seconds:
+            size = new[0].triangles if bench_scene.series == "triangles" else new[0].pixels
+            series[bench_scene.series].append((size, new[0].seconds))
+            series[bench_scene.series + "_glref"] = series.get(bench_scene.series + "_glref", []) + [
+                (size, new[0].glref_seconds)]
+    fits = {}
+    for key, points in series.items():
+        if len(points) > 1:
+            fits[key + "_exponent"] = fit_exponent([p[0] for p in points], [p[1] for p in points])
+    echo("cost fits (time ~ n^k, gl level; 1.0 = linear): "
+         + ", ".join(f"{k} {v:.2f}" for k, v in fits.items()))
+    report = {"rows": [asdict(r) for r in rows], "fits": fits, "runs": runs, "full": full,
+              "truth": TRUTH, "levels": [asdict(level) for level in LEVELS],
+              "memory": "peak_mib: tracemalloc peak of one render (numpy and Python allocations, not "
+                        "numba-internal ones); rss_mib: process peak RSS so far (getrusage)"}
     if out_json:
         from .imageio import write_text_atomic
         write_text_atomic(out_json, json.dumps(report, indent=1))
+    if out_plot:
+        plot(rows, out_plot)
     return report
+
+
+def plot(rows: list[Row], path: str) -> None:
+    """PNG: time (relative to glref) against error (mean, /255), one panel per scene with errors."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+
+    from .imageio import _write_atomic, check_writable
+    names = [n for n in dict.fromkeys(r.scene for r in rows)
+             if any(r.scene == n and r.mean_error is not None for r in rows)]
+    if not names:
+        return
+    cols = min(3, len(names))
+    nrows = -(-len(names) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(5 * cols, 4 * nrows), squeeze=False)
+    for ax, name in zip(axes.flat, names):
+        for r in rows:
+            if r.scene == name and r.ratio is not None and r.mean_error is not None:
+                ax.scatter(r.ratio, r.mean_error + 1e-3, s=25)
+                ax.annotate(r.level, (r.ratio, r.mean_error + 1e-3), fontsize=8,
+                            xytext=(3, 3), textcoords="offset points")
+        ax.axvline(1.0, color="grey", lw=0.8, ls="--")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("time / glref time")
+        ax.set_ylabel("mean error vs truth (/255, +0.001)")
+    for ax in list(axes.flat)[len(names):]:
+        ax.axis("off")
+    fig.tight_layout()
+    import io
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90)
+    plt.close(fig)
+    _write_atomic(check_writable(path), lambda handle: handle.write(buffer.getvalue()), "plot")

@@ -214,23 +214,25 @@ def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height
     wz = np.empty(3)
     iw = np.empty(3)
     win = np.empty(3)
+    c = np.empty(4)
     rx = np.empty(3, np.int64)
     ry = np.empty(3, np.int64)
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
     for t in range(n):
         for k in range(3):
-            if slot[t] < 0:
-                vert = clip_pos[indices[source[t], k]]
+            f = slot[t]
+            if f < 0:
+                v = indices[source[t], k]
+                c[0], c[1], c[2], c[3] = clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3]
                 fused = True
             else:
-                vert = fan_clip[slot[t], k]
-                wts = fan_weights[slot[t], k]
+                c[0], c[1], c[2], c[3] = fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2], fan_clip[f, k, 3]
                 # A vertex made by the clipper has no weight exactly 1 (clip.generated).
-                fused = max(wts[0], max(wts[1], wts[2])) == 1.0
-            oow = np.float32(1.0) / np.float32(vert[3])
+                fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
+            oow = np.float32(1.0) / np.float32(c[3])
             for j in range(3):
-                p = np.float64(np.float32(vert[j]) * oow)
+                p = np.float64(np.float32(c[j]) * oow)
                 if fused:
                     win[j] = np.float64(np.float32(p * sx[j] + sx[j]))
                 else:

@@ -1,5 +1,7 @@
 """softras bench: the figures it prints are computed correctly (no timing asserted)."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -18,10 +20,65 @@ def test_grid_scene_triangle_count():
     assert len(scene.draws[0].mesh.indices) == 200
 
 
+def test_benchmark_set_covers_the_issue_and_scales():
+    """Quick is a subset of full; full sweeps 1k..1M triangles and 256^2..2048^2 pixels."""
+    import softras
+    quick = {s.name for s in bench.scenes(full=False)}
+    full = bench.scenes(full=True)
+    assert quick < {s.name for s in full}
+    kinds = {"many_small_24k_512", "few_large_512", "floor_trilinear_512", "msaa4_24k_512", "blended_8x128_512"}
+    assert kinds <= quick
+    tris = [s for s in full if s.series == "triangles"]
+    pixels = [s for s in full if s.series == "pixels"]
+    counts = [len(softras.load_scene(s.scene).draws[0].mesh.indices) for s in tris]
+    assert counts[0] <= 1100 and counts[-1] >= 999_000
+    assert [s.scene["width"] for s in pixels] == [256, 512, 1024, 2048]
+    assert softras.load_scene(bench.floor_scene(64)).textures["checker"].min_filter == "linear_mipmap_linear"
+    assert all(n["blend"] == "over" for n in bench.blended_scene(64)["nodes"])
+
+
+def test_level_table_one_line_per_level_and_applicability():
+    import softras
+    names = [level.name for level in bench.LEVELS]
+    assert len(names) == len(set(names)) and names[:3] == ["gl", "exact", "gl_msaa4"]
+    grid = softras.load_scene(bench.grid_scene(4, 32))
+    floor = softras.load_scene(bench.floor_scene(32))
+    ewa = next(level for level in bench.LEVELS if level.name == "gl_ewa")
+    assert not bench.applicable(ewa, grid, full=False) and bench.applicable(ewa, floor, full=False)
+    slow = next(level for level in bench.LEVELS if not level.quick)
+    assert not bench.applicable(slow, grid, full=False) and bench.applicable(slow, grid, full=True)
+
+
 @pytest.mark.gl
 def test_measure_reports_every_level_with_zero_error_for_the_truth_level():
     rows = bench.measure("tiny", bench.grid_scene(4, 32), runs=1,
-                         levels={"gl": {"precision": "gl"}, "truth": {"precision": "exact", "samples": 4}})
+                         levels={"gl": {"precision": "gl"}, "truth": bench.TRUTH})
     assert [r.level for r in rows] == ["gl", "truth"]
     assert rows[1].mean_error == 0 and rows[1].bad_fraction == 0
     assert all(r.seconds > 0 and r.ratio == pytest.approx(r.seconds / r.glref_seconds) for r in rows)
+    assert all(r.peak_mib > 0 and r.rss_mib > 0 for r in rows)
+    assert rows[0].mtri_per_s == pytest.approx(32 / rows[0].seconds / 1e6)
+
+
+@pytest.mark.gl
+def test_unknown_option_makes_a_level_not_applicable_instead_of_failing():
+    rows = bench.measure("tiny", bench.grid_scene(2, 16), runs=1, errors=False,
+                         levels={"bogus": {"precision": "gl", "no_such_option": 1}})
+    assert rows[0].seconds is None and rows[0].note.startswith("n/a")
+
+
+@pytest.mark.gl
+def test_run_writes_json_and_plot(tmp_path, monkeypatch):
+    small = [bench.BenchScene("grid", bench.grid_scene(4, 32)),
+             bench.BenchScene("t1", bench.grid_scene(4, 32), levels=False, series="triangles"),
+             bench.BenchScene("t2", bench.grid_scene(8, 32), levels=False, series="triangles")]
+    monkeypatch.setattr(bench, "scenes", lambda *args, **kwargs: small)
+    monkeypatch.setattr(bench, "LEVELS", [bench.Level("gl", {"precision": "gl"}, "gl")])
+    lines = []
+    report = bench.run(runs=1, out_json=str(tmp_path / "b.json"), out_plot=str(tmp_path / "b.png"),
+                       echo=lines.append)
+    saved = json.loads((tmp_path / "b.json").read_text())
+    assert saved["fits"] == report["fits"] and "triangles_exponent" in saved["fits"]
+    assert [r["scene"] for r in saved["rows"]] == ["grid", "t1", "t2"]
+    assert (tmp_path / "b.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert lines[0] == bench.HEADER and lines[-1].startswith("cost fits")
