@@ -2,6 +2,9 @@
 
 Images are always handled as ``uint8`` arrays of shape ``(H, W, 4)`` (RGBA),
 row 0 = the top of the picture, which is also the first row of a PNG file.
+A float image (an rgba32f render) is not written as it is: :func:`to_uint8`
+turns it into the 8-bit image an RGBA8 framebuffer would hold (clamp, round),
+which is what the CLI writes to PNG; keep the array for exact values.
 
 Writing is atomic: :func:`write_png_atomic` writes a temporary file in the
 destination folder and renames it over the destination with
@@ -20,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ImageError", "read_png", "write_png_atomic"]
+__all__ = ["ImageError", "read_png", "to_uint8", "write_png_atomic"]
 
 
 class ImageError(ValueError):
@@ -89,6 +92,18 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(rgba)
 
 
+def to_uint8(image: np.ndarray) -> np.ndarray:
+    """A float image (an rgba32f render, colour units) as the uint8 an RGBA8
+    framebuffer would hold: ``round_half_even(clamp(v, 0, 1) * 255)``.
+    uint8 images are returned as they are."""
+    array = np.asarray(image)
+    if array.dtype.kind != "f":
+        return array
+    if not np.isfinite(array).all():
+        raise ValueError("image has NaN or infinite values")
+    return np.rint(np.clip(array, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
 def _check_image(path: Path, image: np.ndarray) -> np.ndarray:
     """Validate an image to be written and return it as contiguous uint8."""
     array = np.asarray(image)
@@ -151,7 +166,8 @@ def write_png_atomic(path: str | os.PathLike, image: np.ndarray) -> None:
         The destination file. Its folder must exist and be writable.
     image : numpy.ndarray
         ``uint8`` array of shape ``(H, W, 4)`` (RGBA), ``(H, W, 3)`` (RGB) or
-        ``(H, W)`` (grey), row 0 = top of the picture.
+        ``(H, W)`` (grey), row 0 = top of the picture.  A float array (an
+        rgba32f render) is refused: quantise it with `to_uint8` first.
 
     Raises
     ------

@@ -129,6 +129,7 @@ class Comparison:
     ssim_map: np.ndarray = field(repr=False)
     flip_mean: float | None = None
     flip_map: np.ndarray | None = field(default=None, repr=False)
+    max_abs_diff: float | None = None   # float images only: largest channel difference, colour units
 
     def to_dict(self) -> dict:
         """Return the scalar results as a JSON-serialisable dict.
@@ -157,6 +158,8 @@ class Comparison:
         }
         if self.flip_mean is not None:
             result["flip_mean"] = float(self.flip_mean)
+        if self.max_abs_diff is not None:
+            result["max_abs_diff"] = float(self.max_abs_diff)
         return result
 
     def summary(self) -> str:
@@ -348,6 +351,8 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
         ``uint8`` images of the same shape, usually ``(H, W, 4)`` RGBA as
         returned by :func:`softras.render`; ``(H, W, 3)`` and ``(H, W)`` are
         accepted too. A path is read with :func:`softras.imageio.read_png`.
+        Float images (an rgba32f render) are compared unrounded, in 1/255
+        units (see :func:`_compare_float`).
     threshold : int, optional
         Per-pixel tolerance in 1/255 units: a pixel is bad when its largest
         channel difference exceeds it. 0..255, default 2.
@@ -389,6 +394,8 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
     if not -1.0 <= float(min_ssim) <= 1.0:
         raise ValueError(f"compare: min_ssim must be in [-1, 1], got {min_ssim!r}")
 
+    if _is_float_image(a) or _is_float_image(b):
+        return _compare_float(a, b, threshold, max_bad_fraction, min_ssim)
     a = _as_image(a, "a")
     b = _as_image(b, "b")
     if a.shape != b.shape:
@@ -423,3 +430,56 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
 
 _flip = flip  # compare()'s keyword ``flip`` shadows the function
 
+
+def _is_float_image(image) -> bool:
+    return isinstance(image, np.ndarray) and image.dtype.kind == "f"
+
+
+def _compare_float(a, b, threshold: int, max_bad_fraction: float, min_ssim: float) -> Comparison:
+    """:func:`compare` for float images (an rgba32f framebuffer: float32 (H, W, 4)).
+
+    Float values are colour units (1.0 = 255/255) and are neither clamped nor
+    rounded; a uint8 image compared with a float one is read as k/255.  The
+    per-pixel difference is the largest channel difference in 1/255 units, a
+    float, so ``threshold`` keeps its meaning; ``max_diff`` is that
+    difference rounded up to an integer and ``max_abs_diff`` the exact
+    largest difference in colour units.  SSIM is computed on the values
+    x 255 with ``data_range=255``, as for uint8 images.
+    """
+    def as_float(image, name):
+        array = np.asarray(image)
+        if array.dtype == np.uint8:
+            array = array / 255.0
+        elif array.dtype.kind != "f":
+            raise ValueError(f"compare: image {name} must be uint8 or float, got dtype {array.dtype}")
+        if array.ndim == 2:
+            array = array[..., None]
+        if array.ndim != 3 or array.shape[0] == 0 or array.shape[1] == 0:
+            raise ValueError(f"compare: image {name} must have shape (H, W) or (H, W, C), got {array.shape}")
+        if not np.isfinite(array).all():
+            raise ValueError(f"compare: image {name} has NaN or infinite values")
+        return array.astype(np.float64)
+
+    a, b = as_float(a, "a"), as_float(b, "b")
+    if a.shape != b.shape:
+        raise ShapeMismatch(
+            f"compare: images differ in shape: {a.shape[1]}x{a.shape[0]}x{a.shape[2]} "
+            f"vs {b.shape[1]}x{b.shape[0]}x{b.shape[2]} (width x height x channels)"
+        )
+    pixel_diff = np.abs(a - b).max(axis=-1) * 255.0
+    bad_pixels = int(np.count_nonzero(pixel_diff > threshold))
+    bad_fraction = bad_pixels / pixel_diff.size
+    ssim, ssim_map = _ssim(a * 255.0, b * 255.0)
+    return Comparison(
+        passed=bool(bad_fraction <= max_bad_fraction and ssim >= min_ssim),
+        ssim=ssim,
+        max_diff=int(np.ceil(pixel_diff.max())),
+        bad_fraction=float(bad_fraction),
+        bad_pixels=bad_pixels,
+        threshold=threshold,
+        min_ssim=float(min_ssim),
+        max_bad_fraction=float(max_bad_fraction),
+        diff_image=diff_heatmap(np.minimum(pixel_diff, 255.0), threshold),
+        ssim_map=ssim_map,
+        max_abs_diff=float(pixel_diff.max() / 255.0),
+    )

@@ -127,12 +127,91 @@ def apply_fragments(x, y, mask, z, rgba, color, depth, depth_func, depth_write, 
                 color[py, px, s, ch] = v
 
 
-def resolve(color: np.ndarray) -> np.ndarray:
-    """Box-filter the samples and convert to the output image.
+RESOLVE_FILTERS = ("box", "tent")
 
-    color : (H, W, S, 4) float64, y-up.  Returns (H, W, 4) uint8 with row 0 =
-    the top of the picture (GL's last row).
+
+def _tent(d: np.ndarray) -> np.ndarray:
+    """The 2-pixel-wide tent max(0, 1 - |d|), d in pixels."""
+    return np.maximum(0.0, 1.0 - np.abs(d))
+
+
+def resolve_llvmpipe(color: np.ndarray) -> np.ndarray:
+    """llvmpipe's MSAA resolve of an RGBA8 buffer: (H, W, S, 4) k/255 values -> (H, W, 4) uint8, y-up.
+
+    Mesa resolves with a blit shader in float32 (found by experiment against
+    llvmpipe: see tests/stages/test_resolve.py): each stored byte v becomes
+    ``v * (1/255)`` in float32, the S samples are summed in float32 in sample
+    order, the sum is multiplied by ``1/S`` and stored to UNORM8 as
+    ``round_half_even(m * 255)`` in float32.  Its rounding differs from the
+    exact mean's on some partly covered pixels by 1/255.
     """
-    mean = color.mean(axis=2)
+    stored = np.rint(np.clip(color, 0.0, 1.0) * 255.0).astype(np.float32)
+    values = stored * np.float32(1.0 / 255.0)                       # float32 products
+    total = np.zeros(color.shape[:2] + (4,), np.float32)
+    for s in range(color.shape[2]):
+        total += values[:, :, s]                                     # float32 sums, in order
+    mean = total * np.float32(1.0 / color.shape[2])
+    return np.rint(np.clip(mean * np.float32(255.0), 0, 255)).astype(np.uint8)
+
+
+def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: str = "box",
+            arithmetic: str = "exact", output: str = "uint8") -> np.ndarray:
+    """Filter the samples to one colour per pixel and convert to the output image.
+
+    color : (H, W, S, 4) premultiplied RGBA per sample, GL's y-up rows.
+    positions : (S, 2) sample positions in [0, 1)^2 within the pixel (y up);
+        needed by "tent" only.
+    filter : "box" -- the mean of the pixel's own samples (GL's resolve);
+        "tent" -- a weighted mean over the samples of the pixel and its 8
+        neighbours with weight ``(1 - |dx|)(1 - |dy|)`` for a sample at
+        (dx, dy) pixels from the pixel's centre (a tent 2 pixels wide); at
+        the image border the missing neighbours' weight is left out of the
+        normalisation.
+    arithmetic : "exact" (float64) or "llvmpipe" (`resolve_llvmpipe`; box
+        filter, uint8 output only).
+    output : "uint8" -- ``round(clamp(c, 0, 1) * 255)``; "float32" -- the
+        filtered values, unclamped (an rgba32f framebuffer).
+
+    Returns (H, W, 4) uint8 or float32 with row 0 = the top of the picture
+    (GL's last row).
+    """
+    if filter not in RESOLVE_FILTERS:
+        raise ValueError(f"resolve: filter must be one of {RESOLVE_FILTERS}, not {filter!r}")
+    if arithmetic not in ("exact", "llvmpipe"):
+        raise ValueError(f"resolve: arithmetic must be 'exact' or 'llvmpipe', not {arithmetic!r}")
+    if output not in ("uint8", "float32"):
+        raise ValueError(f"resolve: output must be 'uint8' or 'float32', not {output!r}")
+    if arithmetic == "llvmpipe" and filter == "box" and output == "uint8":
+        return resolve_llvmpipe(color)[::-1].copy()
+    if filter == "box":
+        mean = color.mean(axis=2, dtype=np.float64)
+    else:
+        if positions is None:
+            raise ValueError("resolve: the tent filter needs the sample positions")
+        mean = _tent_filter(color, np.asarray(positions, np.float64))
+    if output == "float32":
+        return mean.astype(np.float32)[::-1].copy()
     image = np.rint(np.clip(mean, 0.0, 1.0) * 255.0).astype(np.uint8)
     return image[::-1].copy()
+
+
+def _tent_filter(color: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """(H, W, S, 4), (S, 2) -> (H, W, 4) float64 tent-weighted mean (see `resolve`)."""
+    height, width = color.shape[:2]
+    total = np.zeros((height, width, 4))
+    weight = np.zeros((height, width, 1))
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            # Samples of neighbour (x + dx, y + dy), seen from pixel (x, y)'s centre.
+            w = _tent(dx + positions[:, 0] - 0.5) * _tent(dy + positions[:, 1] - 0.5)   # (S,)
+            if not w.any():
+                continue
+            # Output pixels whose neighbour exists: rows y0:y1, columns x0:x1.
+            y0, y1 = max(0, -dy), height - max(0, dy)
+            x0, x1 = max(0, -dx), width - max(0, dx)
+            if y0 >= y1 or x0 >= x1:
+                continue
+            neighbour = color[y0 + dy:y1 + dy, x0 + dx:x1 + dx]            # (h, w, S, 4)
+            total[y0:y1, x0:x1] += np.tensordot(neighbour, w, axes=([2], [0]))
+            weight[y0:y1, x0:x1] += w.sum()
+    return total / weight
