@@ -19,6 +19,7 @@ Functions
 :func:`sampled_coverage` -- the same quantity estimated by softras's own
 rasterizer with a sample pattern (covered samples / S).
 :func:`coverage_error` -- the two side by side, per (triangle, pixel).
+:func:`scene_triangles` -- a scene's triangles in window space, to measure on.
 """
 
 from __future__ import annotations
@@ -213,6 +214,31 @@ def sampled_coverage(triangles: np.ndarray, width: int, height: int, positions: 
     tri, rest = np.divmod(key, height * width)
     y, x = np.divmod(rest, width)
     return PixelAreas(tri, x, y, covered / n_samples)
+
+
+def scene_triangles(scene) -> np.ndarray:
+    """(T, 3, 2) float64 window x, y of every triangle a scene draws (exact precision).
+
+    Vertex stage and clipping (guard band: only the near/far and w planes cut)
+    in float64, then the viewport transform; lines are skipped.  Culling is
+    ignored: coverage does not depend on winding.
+    """
+    from . import clip as clip_stage
+    from . import setup, vertex
+    from .scene import load_scene
+
+    scene = load_scene(scene)
+    found = [np.zeros((0, 3, 2))]
+    for draw in scene.draws:
+        if draw.mesh.primitive != "triangles" or len(draw.mesh.indices) == 0:
+            continue
+        mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
+        clip_pos = vertex.to_clip(draw.mesh.positions, mvp, "exact")
+        clipped = clip_stage.clip_triangles(clip_pos, draw.mesh.indices, precision="exact", policy="guard_band",
+                                            width=scene.width, height=scene.height)
+        window, _ = setup.viewport_transform(clipped.clip, scene.width, scene.height, "exact")
+        found.append(window[..., :2])
+    return np.concatenate(found)
 
 
 @dataclass(frozen=True)
