@@ -497,6 +497,14 @@ def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], 
     -------
     list of SceneResult
         In the order of ``paths``.
+
+    Notes
+    -----
+    ``spawn`` starts each worker by importing the caller's main module: a
+    script that calls ``run(..., jobs=2)`` must do so under
+    ``if __name__ == "__main__":`` (``softras`` and ``python -m softras`` do).
+    Each worker pays a start-up of about 3 s here (numba's cached kernels, an
+    EGL context), so ``-j`` helps only with more free cores than workers.
     """
     if jobs < 1:
         raise ConformanceError(f"-j {jobs}: need at least 1 process")
