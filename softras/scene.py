@@ -41,6 +41,7 @@ FORMAT_VERSION = 1
 MAX_SIDE = 16384                   # pixels per side
 MAX_PIXELS = 64 * 1024 * 1024      # width * height
 MAX_NODE_DEPTH = 64
+MAX_TEXELS = 64 * 1024 * 1024      # texels of one texture's level 0 (image or procedural)
 
 PROJECTIONS = ("perspective", "orthographic", "frustum")
 PRIMITIVES = ("triangles", "lines")
@@ -68,7 +69,9 @@ class SceneError(ValueError):
     """
 
     def __init__(self, place: str, reason: str):
-        self.place = place
+        # One line even when a key holds a newline or another control character.
+        self.place = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(place))
+        place = self.place
         self.reason = " ".join(str(reason).split())   # one line
         super().__init__(f"{place}: {self.reason}")
 
@@ -524,6 +527,33 @@ _PROCEDURAL_TEXTURE_KEYS = {
 }
 
 
+def _check_image_file(path: str, place: str) -> None:
+    """Decode a texture image once at load time, so that a corrupt, truncated or
+    oversized file is a SceneError here rather than a crash in a renderer.
+
+    The size comes from the file's header and is checked (MAX_SIDE per side,
+    MAX_TEXELS in all) before any pixel is decoded.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as image:
+            width, height = image.size
+            if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE) or width * height > MAX_TEXELS:
+                raise SceneError(place, f"{path} is {width} x {height} texels, more than the limit "
+                                        f"({MAX_SIDE} per side, {MAX_TEXELS} in all)")
+            image.load()
+    except SceneError:
+        raise
+    except UnidentifiedImageError:
+        raise SceneError(place, f"{path} is not an image file (not a PNG or any format Pillow reads)") from None
+    except Image.DecompressionBombError as error:
+        raise SceneError(place, f"{path}: {error}") from None
+    except (OSError, SyntaxError, ValueError, EOFError) as error:
+        # Pillow reports truncated or corrupt data as any of these.
+        raise SceneError(place, f"cannot decode {path}: {error}") from None
+
+
 def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
     textures = {}
     if not isinstance(value, dict):
@@ -547,6 +577,7 @@ def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
             image = os.path.normpath(os.path.join(base_dir, _string(data["image"], f"{place}.image")))
             if not os.path.isfile(image):
                 raise SceneError(f"{place}.image", f"file not found: {image}")
+            _check_image_file(image, f"{place}.image")
         else:
             procedural = _choice(data["procedural"], f"{place}.procedural", PROCEDURAL_TEXTURES)
             if "size" not in data:
@@ -555,6 +586,9 @@ def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
             if len(size_items) != 2:
                 raise SceneError(f"{place}.size", f"expected 2 integers [width, height], got {len(size_items)}")
             size = tuple(_integer(v, f"{place}.size[{i}]", 1, MAX_SIDE) for i, v in enumerate(size_items))
+            if size[0] * size[1] > MAX_TEXELS:
+                raise SceneError(f"{place}.size", f"{size[0]} x {size[1]} is {size[0] * size[1]} texels, "
+                                                  f"more than the limit {MAX_TEXELS}")
             for key, default in _PROCEDURAL_TEXTURE_KEYS[procedural].items():
                 raw = data.get(key, default)
                 key_place = f"{place}.{key}"
@@ -752,7 +786,10 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
         node_place = f"{place}[{i}]"
         data = _object(node, node_place, _NODE_KEYS)
         name = _string(data["name"], f"{node_place}.name") if "name" in data else node_place
-        world = parent_world @ _local_matrix(data, node_place)
+        with np.errstate(over="ignore", invalid="ignore"):
+            world = parent_world @ _local_matrix(data, node_place)
+        if not np.isfinite(world).all():
+            raise SceneError(node_place, "the world matrix overflows (transform numbers too large)")
         if "mesh" in data:
             mesh = _parse_mesh(data["mesh"], f"{node_place}.mesh", budget)
             material = _parse_material(data.get("material", {}), f"{node_place}.material", textures)
@@ -803,6 +840,8 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = No
         raise SceneError("samples", f"expected 1 or 4, got {_type_name(samples)}")
     background = _color(data.get("background", [0, 0, 0, 1]), "background")
     camera = _parse_camera(data.get("camera", {}), width, height)
+    if not (np.isfinite(camera.view).all() and np.isfinite(camera.projection).all()):
+        raise SceneError("camera", "the view or projection matrix overflows (numbers too large)")
     textures = _parse_textures(data.get("textures", {}), base_dir)
     lights = tuple(_parse_light(light, f"lights[{i}]") for i, light in enumerate(_list(data.get("lights", []), "lights")))
     draws: list[Draw] = []

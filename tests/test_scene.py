@@ -230,7 +230,9 @@ def test_file_and_dict_load_the_same(tmp_path):
 def test_texture_path_resolves_against_scene_folder(tmp_path, monkeypatch):
     folder = tmp_path / "scenes"
     (folder / "textures").mkdir(parents=True)
-    (folder / "textures" / "checker.png").write_bytes(b"not read yet")
+    # A real image: the loader decodes texture files (a corrupt one is a SceneError).
+    from PIL import Image
+    Image.new("RGBA", (2, 2)).save(folder / "textures" / "checker.png")
     data = minimal(textures={"checker": {"image": "textures/checker.png", "min_filter": "linear"}})
     data["nodes"][0]["mesh"]["uvs"] = [[0, 1], [1, 1], [0, 0]]
     data["nodes"][0]["material"] = {"texture": "checker"}
