@@ -17,10 +17,21 @@ Extensions to the format (DESIGN.md allows them; the section-5 keys keep their
 meaning):
 
 - top-level ``"description"``: a free text string (:attr:`Scene.description`);
+- top-level ``"framebuffer"``: ``"rgba8"`` (default) or ``"rgba32f"``, the colour
+  buffer of both renderers (an rgba32f render returns float32 pixels);
+- top-level ``"render_order"``: ``"scene"`` (default, GL's draw order) or
+  ``"opaque_then_sorted"`` (see :func:`ordered_draws`);
 - ``"mesh": {"procedural": "grid" | "sphere" | "fan", ...}`` (see
   :mod:`softras.meshes` and :data:`_PROCEDURAL_MESH_KEYS`);
-- texture ``"procedural": "checker" | "gradient" | "noise"`` with ``"size"`` and
-  per-kind parameters instead of ``"image"`` (see :data:`_PROCEDURAL_TEXTURE_KEYS`).
+- texture ``"procedural": "checker" | "gradient" | "noise" | "bumps"`` with ``"size"`` and
+  per-kind parameters instead of ``"image"`` (see :data:`_PROCEDURAL_TEXTURE_KEYS`);
+- material ``"normal_map": NAME`` (tangent-space normal texture) or
+  ``"bump_map": NAME`` with ``"bump_scale"`` (height texture, red channel),
+  both for ``"shading": "phong"`` only and needing mesh uvs (see
+  :func:`softras.fragment.bump_normals`); material ``"displacement":
+  {"texture": NAME, "scale": S}`` moves the mesh's vertices along their
+  normals when the scene is loaded (:mod:`softras.displace`), so
+  ``Draw.mesh`` is the displaced mesh for both renderers.
 """
 
 from __future__ import annotations
@@ -30,7 +41,7 @@ import json
 import math
 import numbers
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -54,7 +65,7 @@ WRAP_MODES = ("repeat", "clamp_to_edge", "mirrored_repeat")
 MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
                "nearest_mipmap_linear", "linear_mipmap_linear")
 MAG_FILTERS = ("nearest", "linear")
-PROCEDURAL_TEXTURES = ("checker", "gradient", "noise")
+PROCEDURAL_TEXTURES = ("checker", "gradient", "noise", "bumps")
 
 DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99}
 
@@ -105,6 +116,16 @@ class Material:
     diffuse: float
     specular: float
     shininess: float
+    normal_map: str | None = None    # texture name: tangent-space normals, rgb = (n + 1) / 2 (phong only)
+    bump_map: str | None = None      # texture name: height in the red channel (phong only)
+    bump_scale: float = 1.0          # bump strength (height units per texel, see softras.fragment)
+    displacement: "Displacement | None" = None  # already applied to Draw.mesh by the loader
+
+
+@dataclass(frozen=True, eq=False)
+class Displacement:
+    texture: str              # name in Scene.textures: height in the red channel
+    scale: float              # model-space distance along the normal for height 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,6 +176,8 @@ class Scene:
     tolerance: dict           # threshold (int, /255), max_bad_fraction, min_ssim
     source: str               # file path or "<dict>"
     description: str = ""
+    framebuffer: str = "rgba8"          # "rgba8" | "rgba32f" (see FRAMEBUFFERS)
+    render_order: str = "scene"         # "scene" | "opaque_then_sorted" (see ordered_draws)
 
 
 # --------------------------------------------------------------------------- GL matrices
@@ -427,7 +450,11 @@ def _readonly(array: np.ndarray | None) -> np.ndarray | None:
 
 
 _TOP_KEYS = ("softras_scene", "description", "width", "height", "background", "samples",
-             "camera", "textures", "lights", "nodes", "tolerance")
+             "camera", "textures", "lights", "nodes", "tolerance", "framebuffer", "render_order")
+# Top-level "framebuffer": the colour buffer both renderers draw into.
+FRAMEBUFFERS = ("rgba8", "rgba32f")
+# Top-level "render_order": the order both renderers draw in (see ordered_draws).
+RENDER_ORDERS = ("scene", "opaque_then_sorted")
 
 
 def _parse_size(data: dict) -> tuple[int, int]:
@@ -524,6 +551,7 @@ _PROCEDURAL_TEXTURE_KEYS = {
     "checker": {"squares": 8, "color0": [0, 0, 0, 1], "color1": [1, 1, 1, 1]},
     "gradient": {"direction": "horizontal", "color0": [0, 0, 0, 1], "color1": [1, 1, 1, 1]},
     "noise": {"seed": 0},
+    "bumps": {"cells": 4},
 }
 
 
@@ -592,7 +620,7 @@ def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
             for key, default in _PROCEDURAL_TEXTURE_KEYS[procedural].items():
                 raw = data.get(key, default)
                 key_place = f"{place}.{key}"
-                if key == "squares":
+                if key in ("squares", "cells"):
                     params[key] = _integer(raw, key_place, 1, MAX_SIDE)
                 elif key == "seed":
                     params[key] = _integer(raw, key_place, 0, 2**32 - 1)
@@ -723,21 +751,51 @@ def _parse_procedural_mesh(value, place: str, budget: list[int]) -> Mesh:
     return Mesh("triangles", *(_readonly(np.ascontiguousarray(a)) if a is not None else None for a in arrays))
 
 
-_MATERIAL_KEYS = ("color", "texture", "shading", "ambient", "diffuse", "specular", "shininess")
+_MATERIAL_KEYS = ("color", "texture", "shading", "ambient", "diffuse", "specular", "shininess",
+                  "normal_map", "bump_map", "bump_scale", "displacement")
+
+
+def _texture_name(value, place: str, textures: dict[str, Texture]) -> str:
+    name = _string(value, place)
+    if name not in textures:
+        known = ", ".join(textures) or "none"
+        raise SceneError(place, f"unknown texture {name!r} (defined: {known})")
+    return name
+
+
+def _parse_displacement(value, place: str, textures: dict[str, Texture]) -> Displacement:
+    data = _object(value, place, ("texture", "scale"), required=("texture", "scale"))
+    return Displacement(texture=_texture_name(data["texture"], f"{place}.texture", textures),
+                        scale=_number(data["scale"], f"{place}.scale"))
 
 
 def _parse_material(value, place: str, textures: dict[str, Texture]) -> Material:
     data = _object(value, place, _MATERIAL_KEYS)
     texture = None
     if "texture" in data and data["texture"] is not None:
-        texture = _string(data["texture"], f"{place}.texture")
-        if texture not in textures:
-            known = ", ".join(textures) or "none"
-            raise SceneError(f"{place}.texture", f"unknown texture {texture!r} (defined: {known})")
+        texture = _texture_name(data["texture"], f"{place}.texture", textures)
+    shading = _choice(data.get("shading", "unlit"), f"{place}.shading", SHADINGS)
+    maps = {}
+    for key in ("normal_map", "bump_map"):
+        if key in data:
+            maps[key] = _texture_name(data[key], f"{place}.{key}", textures)
+            if shading != "phong":
+                raise SceneError(f"{place}.{key}", f"needs \"shading\": \"phong\" (a per-fragment normal); "
+                                                   f"this material is {shading}")
+    if len(maps) == 2:
+        raise SceneError(f"{place}.bump_map", "not allowed together with normal_map (give one of them)")
+    if "bump_scale" in data and "bump_map" not in data:
+        raise SceneError(f"{place}.bump_scale", "only used with bump_map")
+    bump_scale = _number(data.get("bump_scale", 1.0), f"{place}.bump_scale")
+    displacement = None
+    if "displacement" in data:
+        displacement = _parse_displacement(data["displacement"], f"{place}.displacement", textures)
     return Material(
+        normal_map=maps.get("normal_map"), bump_map=maps.get("bump_map"), bump_scale=bump_scale,
+        displacement=displacement,
         color=_readonly(_color(data.get("color", [1, 1, 1, 1]), f"{place}.color")),
         texture=texture,
-        shading=_choice(data.get("shading", "unlit"), f"{place}.shading", SHADINGS),
+        shading=shading,
         ambient=_number(data.get("ambient", 0.1), f"{place}.ambient", 0.0),
         diffuse=_number(data.get("diffuse", 0.8), f"{place}.diffuse", 0.0),
         specular=_number(data.get("specular", 0.5), f"{place}.specular", 0.0),
@@ -797,6 +855,11 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
                 raise SceneError(f"{node_place}.mesh", f"material uses texture {material.texture!r} but the mesh has no uvs")
             if material.shading in ("gouraud", "phong") and mesh.normals is None:
                 raise SceneError(f"{node_place}.mesh", f"{material.shading} shading needs normals")
+            for key in ("normal_map", "bump_map"):
+                if getattr(material, key) is not None and mesh.uvs is None:
+                    raise SceneError(f"{node_place}.mesh", f"material uses {key} {getattr(material, key)!r} but the mesh has no uvs")
+            if material.displacement is not None:
+                mesh = _displaced_mesh(mesh, material.displacement, textures, f"{node_place}.material.displacement")
             draws.append(Draw(
                 path=node_place, name=name, world=_readonly(world.copy()), mesh=mesh, material=material,
                 depth_test=_depth_test(data.get("depth_test", "less"), f"{node_place}.depth_test"),
@@ -809,6 +872,26 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
                     raise SceneError(f"{node_place}.{key}", "a node without a mesh draws nothing (give it to the node with the mesh)")
         if "children" in data:
             _flatten_nodes(data["children"], f"{node_place}.children", world, textures, draws, budget, depth + 1)
+
+
+def _displaced_mesh(mesh: Mesh, displacement: Displacement, textures: dict[str, Texture], place: str) -> Mesh:
+    """The mesh with its vertices moved along their normals (softras.displace)."""
+    if mesh.primitive != "triangles":
+        raise SceneError(place, f"displacement needs triangles, this mesh has {mesh.primitive}")
+    for key in ("normals", "uvs"):
+        if getattr(mesh, key) is None:
+            raise SceneError(place, f"displacement needs mesh {key}, the mesh has none")
+    zero = np.flatnonzero(~np.any(mesh.normals, axis=1))
+    if len(zero):
+        raise SceneError(place, f"the mesh normal {zero[0]} is the zero vector (displacement moves along normals)")
+    from softras import displace, texture as texture_stage   # texture imports this module
+    try:
+        height = texture_stage.prepare(textures[displacement.texture])
+    except (OSError, ValueError) as error:
+        raise SceneError(f"{place}.texture", f"cannot read texture {displacement.texture!r}: {error}") from None
+    positions, normals = displace.displace(mesh.positions, mesh.normals, mesh.uvs, mesh.indices,
+                                           height, displacement.scale)
+    return Mesh(mesh.primitive, _readonly(positions), mesh.indices, mesh.colors, _readonly(normals), mesh.uvs)
 
 
 def _parse_tolerance(value) -> dict:
@@ -847,9 +930,40 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = No
     draws: list[Draw] = []
     _flatten_nodes(data.get("nodes", []), "nodes", np.identity(4), textures, draws, [meshes.MAX_TRIANGLES], 0)
     tolerance = _parse_tolerance(data.get("tolerance", {}))
+    framebuffer = _choice(data.get("framebuffer", "rgba8"), "framebuffer", FRAMEBUFFERS)
+    render_order = _choice(data.get("render_order", "scene"), "render_order", RENDER_ORDERS)
     return Scene(width=width, height=height, background=_readonly(background), samples=int(samples),
                  camera=camera, textures=textures, lights=lights, draws=tuple(draws),
-                 tolerance=tolerance, source=source, description=description)
+                 tolerance=tolerance, source=source, description=description,
+                 framebuffer=framebuffer, render_order=render_order)
+
+
+def ordered_draws(scene: Scene) -> tuple[Draw, ...]:
+    """The draws in the order both renderers issue them (``scene.render_order``).
+
+    "scene": ``scene.draws`` as they are (GL's draw-call order).
+    "opaque_then_sorted" (the lecture's order for transparency): first every
+    opaque draw (``blend == "none"``) in scene order, then the transparent
+    ones back to front -- decreasing view-space distance ``-z_eye`` of the
+    centre of their mesh's model-space bounding box, ties kept in scene
+    order -- each with depth writes off (depth read-only: still tested
+    against the opaque surfaces, but transparent surfaces do not hide each
+    other).  Sorting is per draw, not per triangle: within a draw primitives
+    still blend in index order.
+    """
+    if getattr(scene, "render_order", "scene") == "scene":     # (or a Scene-like object without one)
+        return scene.draws
+    opaque = [draw for draw in scene.draws if draw.blend == "none"]
+    transparent = [draw for draw in scene.draws if draw.blend != "none"]
+
+    def distance(draw: Draw) -> float:
+        positions = draw.mesh.positions
+        centre = (positions.min(axis=0) + positions.max(axis=0)) / 2 if len(positions) else np.zeros(3)
+        eye = scene.camera.view @ draw.world @ np.append(centre, 1.0)     # eye space, looking down -z
+        return -eye[2]
+
+    back_to_front = sorted(transparent, key=distance, reverse=True)
+    return tuple(opaque) + tuple(replace(draw, depth_write=False) for draw in back_to_front)
 
 
 def _reject_constant(name: str):

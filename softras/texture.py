@@ -108,6 +108,12 @@ def procedural_texels(kind: str, size: tuple[int, int], params: dict) -> np.ndar
         ``mix(color0, color1, (i + 0.5) / W)``, rounded to bytes.
     noise : white noise, RGB uniform in 0..255 from ``numpy.random.default_rng(seed)``,
         alpha 255.
+    bumps : a height map for bump and displacement mapping: ``cells`` x
+        ``cells`` round bumps, grey (R = G = B = height), alpha 255.  At texel
+        centre (x, y) = ((i + 0.5) / W, (j + 0.5) / H) the cell-local position
+        is ``f = frac((x, y) * cells) - 1/2`` and the height
+        ``h = (1 + cos(pi min(2 |f|, 1))) / 2`` (1 at a cell centre, 0 from
+        the inscribed circle outwards), rounded to bytes ``round(255 h)``.
     """
     width, height = int(size[0]), int(size[1])
     if kind == "checker":
@@ -133,6 +139,16 @@ def procedural_texels(kind: str, size: tuple[int, int], params: dict) -> np.ndar
         rng = np.random.default_rng(int(params["seed"]))
         out = np.empty((height, width, 4), np.uint8)
         out[..., :3] = rng.integers(0, 256, size=(height, width, 3), dtype=np.uint8)
+        out[..., 3] = 255
+        return out
+    if kind == "bumps":
+        cells = int(params["cells"])
+        fx = np.mod((np.arange(width) + 0.5) / width * cells, 1.0) - 0.5     # (W,)
+        fy = np.mod((np.arange(height) + 0.5) / height * cells, 1.0) - 0.5   # (H,)
+        radius = np.minimum(2.0 * np.hypot(fx[None, :], fy[:, None]), 1.0)   # (H, W)
+        grey = np.rint(255.0 * (1.0 + np.cos(np.pi * radius)) / 2.0).astype(np.uint8)
+        out = np.empty((height, width, 4), np.uint8)
+        out[..., :3] = grey[..., None]
         out[..., 3] = 255
         return out
     raise ValueError(f"unknown procedural texture {kind!r}")
@@ -424,33 +440,18 @@ def sample(texture: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray
         does by default (see :func:`uses_fixed_point`); False reproduces
         llvmpipe run with ``GALLIVM_PERF=no_aos_sampling`` (float weights).
     Returns (N, 4) float64 premultiplied RGBA in [0, 1].
+
+    With ``max_anisotropy > 1`` the anisotropic filter takes over
+    (:func:`sample_anisotropic`).
     """
     gl = precision == "gl"
     n = len(st)
     if n == 0:
         return np.zeros((0, 4))
-    du, dv = texel_derivatives(ddx, ddy, texture.size, gl)
-    rho2 = rho_squared(du, dv)
-    levels = texture.used_levels
-    choice = choose_levels(rho2, texture.min_filter, len(levels), gl)
-    min_image = texture.min_filter.split("_")[0]          # "nearest" or "linear"
-    s, t = st[:, 0], st[:, 1]
-
-    def filtered(level_index: np.ndarray) -> np.ndarray:
-
-    With ``max_anisotropy > 1`` the anisotropic filter takes over
-    (:func:`sample_anisotropic`).
-        out = np.zeros((n, 4), np.int64 if fixed8 else np.float64)
-        filters = np.where(choice.magnified, texture.mag_filter, min_image)
-        for lvl in np.unique(level_index):
-            for image_filter in ("nearest", "linear"):
-                idx = np.nonzero((level_index == lvl) & (filters == image_filter))[0]
-                if len(idx):
-                    out[idx] = filter_level(levels[lvl], s[idx], t[idx], image_filter,
     if effective_anisotropy(texture.max_anisotropy, gl) > 1:
         return sample_anisotropic(texture, st, ddx, ddy, precision)
-                                            texture.wrap_s, texture.wrap_t, gl, fixed8)
-        return out
+    du, dv = texel_derivatives(ddx, ddy, texture.size, gl)
+    rho2 = rho_squared(du, dv)
     fixed8 = fixed_point and uses_fixed_point(texture, gl)
     return filter_at_lod(texture, st, rho2, gl, fixed8)
 
@@ -461,6 +462,21 @@ def filter_at_lod(texture: MipTexture, st: np.ndarray, rho2: np.ndarray, gl: boo
     texels^2, then the min / mag filter on the chosen level(s) and the mip
     blend.  st : (N, 2).  Returns (N, 4) float64 premultiplied RGBA in [0, 1]."""
     n = len(st)
+    levels = texture.used_levels
+    choice = choose_levels(rho2, texture.min_filter, len(levels), gl)
+    min_image = texture.min_filter.split("_")[0]          # "nearest" or "linear"
+    s, t = st[:, 0], st[:, 1]
+
+    def filtered(level_index: np.ndarray) -> np.ndarray:
+        out = np.zeros((n, 4), np.int64 if fixed8 else np.float64)
+        filters = np.where(choice.magnified, texture.mag_filter, min_image)
+        for lvl in np.unique(level_index):
+            for image_filter in ("nearest", "linear"):
+                idx = np.nonzero((level_index == lvl) & (filters == image_filter))[0]
+                if len(idx):
+                    out[idx] = filter_level(levels[lvl], s[idx], t[idx], image_filter,
+                                            texture.wrap_s, texture.wrap_t, gl, fixed8)
+        return out
 
     level0 = np.where(choice.magnified, 0, choice.level0)
     c0 = filtered(level0)
