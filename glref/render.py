@@ -1,14 +1,17 @@
 """glref: render a `softras.scene.Scene` with real OpenGL (moderngl, headless EGL).
 
 This is the reference the software pipeline is checked against, so it does the
-plainest possible thing: one draw call per `Draw`, in `scene.draws` order, with
+plainest possible thing: one draw call per `Draw`, in `ordered_draws(scene)`
+order (`softras.scene`: `scene.draws`, or the lecture's opaque-then-sorted
+transparency order when the scene asks for it), with
 the GL state the scene asks for and small shaders specialised per feature set
 by `#define` (DESIGN.md sections 2 and 3).
 
 Spaces: positions are model space; `u_mvp` = P @ V @ world maps them to clip
 space (computed in float64 on the CPU, uploaded as float32); GL does the rest
 (clipping, perspective divide, viewport transform to window coordinates with y
-up, rasterization, depth test, blending into an RGBA8 framebuffer). The
+up, rasterization, depth test, blending into an RGBA8 -- or, for a scene's
+"framebuffer": "rgba32f", an RGBA32F -- renderbuffer). The
 readback is flipped so the returned image has row 0 = top of the picture.
 
 Textures: the texels and every mip level come from `softras.texture.prepare`
@@ -16,7 +19,9 @@ Textures: the texels and every mip level come from `softras.texture.prepare`
 level by level, so both renderers filter identical bytes; the sampler state
 is set with glTextureParameteri.  Lighting (flat / gouraud / phong
 Blinn-Phong in world space) uses lit.vert / lit.frag with lighting.glsl, and
-lit.geom.glsl for flat shading.  llvmpipe's sampling depends on
+lit.geom.glsl for flat shading.  A Phong material's normal or bump map is a
+second sampler (unit 1) with softras's per-vertex tangents as the attribute
+``in_tangent``; displaced meshes arrive already displaced in ``Draw.mesh``.  llvmpipe's sampling depends on
 GALLIVM_PERF, read once per process and recorded by `glref.info()`.
 """
 
@@ -132,6 +137,10 @@ def _features(draw, n_lights: int) -> tuple[str, ...]:
         defines.append("HAS_COLOR")
     if mat.texture is not None:
         defines.append("HAS_TEXTURE")
+    if mat.normal_map is not None or mat.bump_map is not None:
+        if mat.shading != "phong":
+            raise NotImplementedError(f"glref: {draw.path}: normal and bump maps need phong shading")
+        defines.append("NORMAL_MAP" if mat.normal_map is not None else "BUMP_MAP")
     return tuple(sorted(defines))
 
 
@@ -205,7 +214,7 @@ def _drain_errors(ctx) -> None:
             return
 
 
-def render(scene, *, samples: int | None = None) -> np.ndarray:
+def render(scene, *, samples: int | None = None, framebuffer: str | None = None) -> np.ndarray:
     """Render `scene` with OpenGL and return the picture.
 
     scene:   a `softras.scene.Scene` (a dict or a path is loaded with
@@ -213,15 +222,25 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
     samples: 1 = single-sampled, N > 1 = N-sample MSAA (resolved to one
              sample per pixel by a framebuffer blit, i.e. the driver's box
              average); None = `scene.samples`.
+    framebuffer: "rgba8" (GL_RGBA8 renderbuffer) or "rgba32f" (GL_RGBA32F:
+             no clamping, float32 blending); None = `scene.framebuffer`.
 
-    Returns uint8 (H, W, 4) RGBA, premultiplied, row 0 = top of the picture
-    (GL's last row), column 0 = left.
+    Draws are issued in `softras.scene.ordered_draws` order (the scene's
+    "render_order"), the same list softras draws.
+
+    Returns (H, W, 4) RGBA, premultiplied, row 0 = top of the picture (GL's
+    last row), column 0 = left: uint8 for rgba8, float32 for rgba32f.
     Raises `GLUnavailable` when there is no GL, `NotImplementedError` for
     scene features glref does not draw yet, RuntimeError on a GL error.
     """
+    from softras.scene import FRAMEBUFFERS, load_scene, ordered_draws  # the softras module glref may import
     if not hasattr(scene, "draws"):
-        from softras.scene import load_scene  # the one softras import glref may do
         scene = load_scene(scene)
+    framebuffer = framebuffer or getattr(scene, "framebuffer", "rgba8")
+    if framebuffer not in FRAMEBUFFERS:
+        raise ValueError(f"glref: framebuffer must be one of {FRAMEBUFFERS}, not {framebuffer!r}")
+    dtype = "f1" if framebuffer == "rgba8" else "f4"
+    draws = ordered_draws(scene)
     ctx = get_context()
     import moderngl as mgl
 
@@ -232,7 +251,7 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
     msaa = 0 if n_samples == 1 else n_samples
     size = (width, height)
 
-    features = [_features(d, len(scene.lights)) for d in scene.draws]  # fail before touching GL
+    features = [_features(d, len(scene.lights)) for d in draws]  # fail before touching GL
     proj_view = np.asarray(scene.camera.projection, np.float64) @ np.asarray(
         scene.camera.view, np.float64)
 
@@ -245,7 +264,7 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
         return obj
 
     try:
-        color_rb = own(ctx.renderbuffer(size, components=4, samples=msaa, dtype="f1"))
+        color_rb = own(ctx.renderbuffer(size, components=4, samples=msaa, dtype=dtype))
         depth_rb = own(ctx.depth_renderbuffer(size, samples=msaa))
         fbo = own(ctx.framebuffer(color_attachments=[color_rb], depth_attachment=depth_rb))
         fbo.viewport = (0, 0, width, height)
@@ -262,7 +281,7 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
         ctx.multisample = True
         ctx.wireframe = False
 
-        for draw, defines in zip(scene.draws, features):
+        for draw, defines in zip(draws, features):
             mesh = draw.mesh
             indices = np.ascontiguousarray(mesh.indices, dtype=np.int32).reshape(-1)
             if indices.size == 0 or len(mesh.positions) == 0:
@@ -283,12 +302,16 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
                 if "SHADING_FLAT" not in defines:
                     content.append((own(ctx.buffer(np.ascontiguousarray(mesh.normals, np.float32))),
                                     "3f", "in_normal"))
-            if "HAS_TEXTURE" in defines:
+            mapped = "NORMAL_MAP" in defines or "BUMP_MAP" in defines
+            if "HAS_TEXTURE" in defines or mapped:
                 content.append((own(ctx.buffer(np.ascontiguousarray(mesh.uvs, np.float32))),
                                 "2f", "in_uv"))
+            if "HAS_TEXTURE" in defines:
                 tex = own(_upload_texture(ctx, scene.textures[draw.material.texture]))
                 tex.use(0)
                 prog["u_texture"].value = 0
+            if mapped:
+                content.append(_set_normal_mapping(ctx, prog, scene, draw, own))
             ibo = own(ctx.buffer(indices))
             vao = own(ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=4))
 
@@ -297,14 +320,14 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
             vao.render(mode)
 
         if msaa:
-            resolved_rb = own(ctx.renderbuffer(size, components=4, dtype="f1"))
+            resolved_rb = own(ctx.renderbuffer(size, components=4, dtype=dtype))
             resolved = own(ctx.framebuffer(color_attachments=[resolved_rb]))
             ctx.copy_framebuffer(resolved, fbo)
             read_fbo = resolved
         else:
             read_fbo = fbo
         data = read_fbo.read(viewport=(0, 0, width, height), components=4,
-                             dtype="f1", alignment=1)
+                             dtype=dtype, alignment=1)
         err = ctx.error
         if err != "GL_NO_ERROR":
             raise RuntimeError(f"glref: OpenGL error {err} while rendering {scene.source}")
@@ -313,7 +336,7 @@ def render(scene, *, samples: int | None = None) -> np.ndarray:
         for obj in reversed(owned):
             obj.release()
 
-    image = np.frombuffer(data, dtype=np.uint8).reshape(height, width, 4)
+    image = np.frombuffer(data, dtype=np.uint8 if dtype == "f1" else np.float32).reshape(height, width, 4)
     return np.ascontiguousarray(image[::-1])  # GL row 0 is the bottom
 
 
@@ -343,6 +366,27 @@ def _set_lighting(prog, scene, draw) -> None:
     mat = draw.material
     for name in ("ambient", "diffuse", "specular", "shininess"):
         prog[f"u_{name}"].value = float(getattr(mat, name))
+
+
+def _set_normal_mapping(ctx, prog, scene, draw, own):
+    """Normal / bump map of a Phong draw: the map on texture unit 1, its
+    uniforms, and the vertex buffer of softras's tangents (the same values
+    softras interpolates).  Returns the (buffer, format, name) VAO entry."""
+    from softras import meshes
+    mesh, mat = draw.mesh, draw.material
+    name = mat.normal_map if mat.normal_map is not None else mat.bump_map
+    tex = own(_upload_texture(ctx, scene.textures[name]))
+    tex.use(1)
+    if mat.normal_map is not None:
+        prog["u_normal_map"].value = 1
+    else:
+        prog["u_bump_map"].value = 1
+        width, height = tex.size
+        prog["u_bump_texel"].value = (1.0 / width, 1.0 / height)
+        prog["u_bump_scale"].value = float(mat.bump_scale)
+    prog["u_handedness"].value = -1.0 if np.linalg.det(np.asarray(draw.world)[:3, :3]) < 0 else 1.0
+    tangents = meshes.vertex_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.indices)
+    return (own(ctx.buffer(np.ascontiguousarray(tangents, np.float32))), "4f", "in_tangent")
 
 
 def _apply_state(ctx, mgl, fbo, draw) -> None:
