@@ -11,48 +11,153 @@ from __future__ import annotations
 import numpy as np
 
 from . import clip as clip_stage
-from . import fragment, interpolate, lines, ops, rasterize, setup, texture, vertex
-from .scene import Scene
+from . import fastpath, fragment, interpolate, lines, meshes, ops, rasterize, sampling, setup, texture, vertex
+from . import texture_beyond
+from .scene import Scene, ordered_draws
 
 PRECISIONS = ("gl", "exact")
 
 # llvmpipe's 4x MSAA sample positions within a pixel (x, y), GL window space.
-MSAA4_POSITIONS = np.array([[0.375, 0.125], [0.875, 0.375], [0.125, 0.625], [0.625, 0.875]])
-CENTER_POSITION = np.array([[0.5, 0.5]])
+MSAA4_POSITIONS = sampling.GL_MSAA4
+CENTER_POSITION = sampling.GL_CENTER
+
+# The rasterizers keep a fragment's coverage in a uint32 bit mask, so a pass
+# renders at most 32 samples; more samples are rendered in several passes
+# (each through every stage) into slices of the per-sample colour buffer.
+MAX_PASS_SAMPLES = sampling.MAX_PASS_SAMPLES
+sample_passes = sampling.sample_passes
+# Largest per-sample colour buffer (H x W x S x 4 float64) render_scene makes.
+MAX_SAMPLE_BYTES = 1 << 30
+FRAMEBUFFERS = ("rgba8", "rgba32f")
 
 
-def sample_positions(samples: int) -> np.ndarray:
-    """(S, 2) sample positions in [0, 1)^2 for a GL sample count."""
-    if samples == 1:
-        return CENTER_POSITION
-    if samples == 4:
-        return MSAA4_POSITIONS
-    raise ValueError(f"samples must be 1 or 4, not {samples}")
+def sample_positions(samples: int, pattern: str | None = None, seed: int = 0) -> np.ndarray:
+    """(S, 2) sample positions in [0, 1)^2 (see `softras.sampling`).
+
+    pattern None = GL's: 1 sample = the pixel centre, 4 = llvmpipe's MSAA
+    positions; "grid", "rotated_grid", "jittered", "halton", "poisson" are
+    softras's own (seeded where random).
+    """
+    return sampling.sample_positions(samples, pattern, seed)
+
+
+def _mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal, precision,
+                    texture_fixed_point):
+    """Phong shading with a normal or bump map: (F, 3) world normals perturbed
+    per fragment (softras.fragment: tangent frames from softras.meshes,
+    the map sampled like any texture, with the uv's derivatives)."""
+    mesh, material = draw.mesh, draw.material
+    gl = precision == "gl"
+    tangents = vertex.world_tangents(meshes.vertex_tangents(mesh.positions, mesh.normals, mesh.uvs,
+                                                            mesh.indices), draw.world)
+    tangent = interpolate.interpolate(persp, corners(tangents)[t])
+    uvs = mesh.uvs.astype(np.float32).astype(np.float64) if gl else mesh.uvs
+    corner_uv = corners(uvs)[t]
+    st = interpolate.interpolate(persp, corner_uv)
+    if gl:
+        ddx, ddy = interpolate.quad_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y, corner_uv)
+    else:
+        ddx, ddy = interpolate.analytic_derivatives(tris.window[t], tris.inv_w[t], centres, corner_uv)
+    if material.normal_map is not None:
+        tex = texture.prepare(scene.textures[material.normal_map])
+        mapped = fragment.normal_map_normals(texture.sample(tex, st, ddx, ddy, precision, texture_fixed_point))
+    else:
+        tex = texture.prepare(scene.textures[material.bump_map])
+        mapped = fragment.bump_normals(tex, st, ddx, ddy, material.bump_scale, precision, texture_fixed_point)
+    return fragment.perturb_normals(normal, tangent, mapped)
 
 
 def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = None,
-                 clipping: str | None = None, texture_fixed_point: bool = True) -> np.ndarray:
-    """Render a loaded scene; returns (H, W, 4) uint8, row 0 = top.
+                 pattern: str | None = None, seed: int = 0, resolve_filter: str = "box",
+                 framebuffer: str | None = None, clipping: str | None = None,
+                 texture_fixed_point: bool = True, fast_path: bool = True,
+                 texture_filter=None) -> np.ndarray:
+    """Render a loaded scene; returns the picture, row 0 = top.
 
     precision : "gl" (llvmpipe's fixed point, float32 vertex math, RGBA8 and
         24-bit depth rounding) or "exact" (float64 throughout, no snapping).
-    samples : overrides ``scene.samples``.
+    samples : samples per pixel, overrides ``scene.samples``; 1..1024.
+    pattern : sample pattern (`softras.sampling`); None = GL's (1 or 4 samples).
+    seed : seed of the random patterns ("jittered", "poisson").
+    resolve_filter : "box" (the pixel's own samples) or "tent" (a 2-pixel-wide
+        tent over the 3 x 3 neighbourhood's samples), see `softras.ops.resolve`.
+    framebuffer : "rgba8" or "rgba32f", overrides ``scene.framebuffer``.
     clipping : "llvmpipe" (default in gl) or "guard_band" (default in exact).
     texture_fixed_point : gl precision: filter RGBA8 textures with repeat /
         clamp_to_edge wrapping in llvmpipe's 8.8 fixed point, as llvmpipe does
         by default; False = float weights, as llvmpipe with
         ``GALLIVM_PERF=no_aos_sampling`` (see `softras.texture`).
+    fast_path : let `softras.fastpath` render the scenes it supports (the
+        same bytes, from one fused kernel per draw); False: always the stages.
+    texture_filter : None, "ripmap", "ewa", "level0" or a dict {texture name:
+        filter}: replaces the min filter of every (or the named) texture with
+        a softras-only filter (see `softras.texture_beyond`); glref ignores it.
+
+    Returns (H, W, 4) premultiplied RGBA: uint8 for an rgba8 framebuffer,
+    float32 (unclamped, as GL reads back a float buffer) for rgba32f.
+    More than 32 samples are rendered in passes of <= 32 (`sample_passes`);
+    a per-sample colour buffer over MAX_SAMPLE_BYTES is refused (ValueError).
     """
     if precision not in PRECISIONS:
         raise ValueError(f"precision must be one of {PRECISIONS}, not {precision!r}")
+    framebuffer = framebuffer or scene.framebuffer
+    if framebuffer not in FRAMEBUFFERS:
+        raise ValueError(f"framebuffer must be one of {FRAMEBUFFERS}, not {framebuffer!r}")
+    if resolve_filter not in ops.RESOLVE_FILTERS:
+        raise ValueError(f"resolve_filter must be one of {ops.RESOLVE_FILTERS}, not {resolve_filter!r}")
+    texture_beyond.check_texture_filter(texture_filter, scene.textures)
+    positions = sample_positions(samples or scene.samples, pattern, seed)
+    n_samples = len(positions)
+    size = scene.width * scene.height * n_samples * 4 * 8
+    if size > MAX_SAMPLE_BYTES:
+        raise ValueError(f"{scene.width}x{scene.height} pixels x {n_samples} samples need "
+                         f"{size / 2**30:.1f} GiB of sample colour (limit "
+                         f"{MAX_SAMPLE_BYTES / 2**30:.0f} GiB): use fewer samples or a smaller image")
+    rgba8 = framebuffer == "rgba8"
+    color = None
+    # Dispatch: a gl-precision RGBA8 scene at GL's sample positions that uses
+    # only what `softras.fastpath` implements gets the same bytes from its
+    # fused kernel (tests/test_fastpath.py).  A new option must either send
+    # scenes that use it past this test or be implemented there.
+    fast = (fast_path and rgba8 and pattern in (None, "gl") and texture_filter is None
+            and fastpath.unsupported(scene, precision=precision, samples=n_samples, clipping=clipping) is None)
+    if fast:
+        stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point)
+        if n_samples == 1 and resolve_filter == "box":
+            return stored[::-1, :, 0].copy()        # the resolve of one RGBA8 sample is its bytes
+        color = stored / 255.0                      # the stages' k/255 sample values
+    for start, stop in ([] if fast else sample_passes(n_samples)):
+        part = _render_pass(scene, positions[start:stop], precision=precision, rgba8=rgba8,
+                            clipping=clipping, texture_fixed_point=texture_fixed_point,
+                            texture_filter=texture_filter)
+        if color is None:
+            color = np.empty(part.shape[:2] + (n_samples, 4), part.dtype)
+        color[:, :, start:stop] = part
+    # GL's MSAA resolve (llvmpipe's float32 arithmetic) for GL's patterns in gl
+    # precision; the exact float64 mean otherwise.
+    arithmetic = "llvmpipe" if precision == "gl" and pattern in (None, "gl") else "exact"
+    return ops.resolve(color, positions, filter=resolve_filter, arithmetic=arithmetic,
+                       output="uint8" if rgba8 else "float32")
+
+
+def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: bool,
+                 clipping: str | None, texture_fixed_point: bool, texture_filter=None) -> np.ndarray:
+    """Render every draw at <= 32 sample positions (S, 2) in [0, 1)^2.
+
+    Returns the per-sample colour buffer (H, W, S, 4) premultiplied, GL's
+    y-up rows: float64 k/255 values for rgba8 in gl precision, float32 for
+    rgba32f in gl precision (float32 storage, as GL's), float64 in exact.
+    """
     gl = precision == "gl"
+    quantize = gl and rgba8
     policy = clipping or ("llvmpipe" if gl else "guard_band")
-    positions = sample_positions(samples or scene.samples)
     offsets, unit = setup.sample_offsets(positions, precision)
     width, height = scene.width, scene.height
-    color, depth = ops.new_framebuffer(width, height, len(positions), scene.background, quantize=gl)
+    color, depth = ops.new_framebuffer(width, height, len(positions), scene.background, quantize=quantize)
+    if gl and not rgba8:
+        color = color.astype(np.float32)
 
-    for draw in scene.draws:
+    for draw in ordered_draws(scene):
         mesh = draw.mesh
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
         clip_pos = vertex.to_clip(mesh.positions, mvp, precision)
@@ -68,7 +173,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                 ops.apply_fragments(f.x, f.y, f.mask, ops.quantize_depth(lf.z) if gl else lf.z,
                                     fragment.shade_unlit(lf.values, draw.material.color), color, depth,
                                     ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
-                                    ops.BLEND_MODES[draw.blend], gl)
+                                    ops.BLEND_MODES[draw.blend], quantize)
             continue
         clipped = clip_stage.clip_triangles(clip_pos, mesh.indices, precision=precision,
                                             policy=policy, width=width, height=height)
@@ -119,6 +224,9 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
             world_normals = vertex.world_normals(mesh.normals, draw.world, unit=False)
             normal = interpolate.interpolate(persp, corners(world_normals)[t])
             normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+            if material.normal_map is not None or material.bump_map is not None:
+                normal = _mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
+                                         precision, texture_fixed_point)
             lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
             colors = np.concatenate([lit, colors[:, 3:]], axis=1)
         else:
@@ -135,9 +243,10 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
             else:
                 ddx, ddy = interpolate.analytic_derivatives(tris.window[t], tris.inv_w[t], centres,
                                                             corner_uv[t])
-            texel = texture.sample(tex, st, ddx, ddy, precision, texture_fixed_point)
+            texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
+                                                  texture_filter)
         rgba = fragment.shade_unlit(colors, np.ones(4), texel)
         ops.apply_fragments(frags.x, frags.y, frags.mask, z, rgba, color, depth,
                             ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
-                            ops.BLEND_MODES[draw.blend], gl)
-    return ops.resolve(color)
+                            ops.BLEND_MODES[draw.blend], quantize)
+    return color
