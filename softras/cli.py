@@ -3,13 +3,16 @@
 ::
 
     softras render SCENE -o OUT.png [--backend soft|gl] [--precision gl|exact] [--samples N]
+                   [--pattern P] [--seed K] [--filter box|tent] [--framebuffer rgba8|rgba32f]
     softras compare A.png B.png [-o DIFF.png] [--json] [--threshold N]
                     [--max-bad-fraction F] [--min-ssim S]
     softras compare SCENE.json [-o DIFF.png] [--json] [--out-dir DIR]
                     [--precision gl|exact] [--samples N] [tolerance options]
     softras demo [--scene SCENE.json] [--out-dir DIR] [--json] [--precision gl|exact]
     softras golden [--update] [--golden-dir DIR] [--out-dir DIR] [PATH ...]
-    softras bench [--runs N] [--max-triangles N] [--max-side N] [--json OUT.json]
+    softras conformance [PATH ...] [--report DIR] [-k PATTERN] [--shard I/N] [-j N]
+    softras bench [--quick | --full] [--runs N] [--max-triangles N] [--max-side N]
+                  [--json OUT.json] [--plot OUT.png]
 
 Exit status (DESIGN.md section 6): 0 success or comparison passed, 1 comparison
 failed, 2 bad input or environment error. On status 2 exactly one line,
@@ -82,16 +85,17 @@ def _load_scene(path: str):
         raise CLIError(_one_line(error)) from None
 
 
-def _render(scene, backend: str, precision: str | None, samples: int | None):
+def _render(scene, backend: str, precision: str | None, samples: int | None, **extra):
     """Render ``scene`` with one backend; returns (image, seconds).
 
-    Expected failures (missing OpenGL, a scene the backend rejects) become
-    CLIError.
+    ``extra``: more render options (pattern, seed, resolve_filter,
+    framebuffer).  Expected failures (missing OpenGL, a scene the backend
+    rejects) become CLIError.
     """
     import softras
     from softras.scene import SceneError
 
-    options = {}
+    options = dict(extra)
     if samples is not None:
         options["samples"] = samples
     if backend == "soft" and precision is not None:
@@ -155,13 +159,33 @@ def _check_output_dir(folder: str | os.PathLike) -> Path:
 
 
 def _compare(a, b, tolerance: dict):
-    """softras.compare, with a shape mismatch turned into a CLIError."""
-    from softras.metrics import ShapeMismatch, compare
+    """softras.compare with FLIP (b is the reference); a shape mismatch or a
+    missing flip-evaluator becomes a CLIError."""
+    from softras.metrics import FlipUnavailable, ShapeMismatch, compare
 
     try:
-        return compare(a, b, **tolerance)
-    except ShapeMismatch as error:
+        return compare(a, b, flip=True, **tolerance)
+    except (ShapeMismatch, FlipUnavailable) as error:
         raise CLIError(_one_line(error)) from None
+
+
+def _map_outputs(args: argparse.Namespace) -> dict:
+    """The picture files asked for (-o, --ssim-map, --flip-map), checked writable before any work."""
+    wanted = {"diff": getattr(args, "output", None), "ssim": getattr(args, "ssim_map", None),
+              "flip": getattr(args, "flip_map", None)}
+    return {name: _check_output_file(path) for name, path in wanted.items() if path}
+
+
+def _write_maps(result, targets: dict) -> list[Path]:
+    """Write the difference heat map, SSIM map and FLIP map asked for; returns the paths."""
+    from softras.imageio import write_png_atomic
+    from softras.metrics import error_map_image
+
+    pictures = {"diff": lambda: result.diff_image, "ssim": lambda: error_map_image(1.0 - result.ssim_map),
+                "flip": lambda: error_map_image(result.flip_map)}
+    for name, path in targets.items():
+        write_png_atomic(path, pictures[name]())
+    return list(targets.values())
 
 
 def _tolerance(args: argparse.Namespace, base: dict) -> dict:
@@ -196,25 +220,39 @@ def _report(result, *, as_json: bool, header: list[str], extra: dict, outputs: l
 
 def cmd_render(args: argparse.Namespace) -> int:
     """``softras render SCENE -o OUT.png``: render one scene with one backend."""
-    from softras.imageio import write_png_atomic
+    from softras.imageio import to_uint8, write_png_atomic
 
     if args.backend == "gl" and args.precision is not None:
         raise CLIError("--precision applies to --backend soft only")
+    extra = {name: value for name, value in (("pattern", args.pattern), ("seed", args.seed),
+                                             ("resolve_filter", args.filter)) if value is not None}
+    if args.backend == "gl" and extra:
+        raise CLIError("--pattern, --seed and --filter apply to --backend soft only")
+    if args.framebuffer is not None:
+        extra["framebuffer"] = args.framebuffer
+    if args.texture_filter is not None:
+        if args.backend == "gl":
+            raise CLIError("--texture-filter applies to --backend soft only (GL has no ripmap or EWA)")
+        extra["texture_filter"] = args.texture_filter
     scene = _load_scene(args.scene)
     output = _check_output_file(args.output)
-    image, seconds = _render(scene, args.backend, args.precision, args.samples)
-    write_png_atomic(output, image)
+    try:
+        image, seconds = _render(scene, args.backend, args.precision, args.samples, **extra)
+    except ValueError as error:      # an option the renderer refuses (sample count, pattern, memory)
+        raise CLIError(_one_line(error)) from None
+    write_png_atomic(output, to_uint8(image))     # PNG is 8 bits: rgba32f is quantised
     height, width = image.shape[:2]
-    print(f"{args.backend}: {width}x{height} in {seconds:.2f} s -> {output}")
+    note = " (rgba32f, 8 bits in the PNG)" if image.dtype.kind == "f" else ""
+    print(f"{args.backend}: {width}x{height} in {seconds:.2f} s -> {output}{note}")
     return EXIT_OK
 
 
 def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | None) -> int:
     """Render a scene with both backends and compare (compare SCENE, demo)."""
-    from softras.imageio import write_png_atomic
+    from softras.imageio import to_uint8, write_png_atomic
 
     scene = _load_scene(scene_path)
-    diff_output = _check_output_file(args.output) if getattr(args, "output", None) else None
+    targets = _map_outputs(args)
     folder = _check_output_dir(out_dir) if out_dir is not None else None
 
     # GL first: a missing OpenGL context is found before the slow soft render.
@@ -223,14 +261,11 @@ def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | Non
     gl_name = _gl_description()
     result = _compare(soft, gl, _tolerance(args, scene.tolerance))
 
-    outputs: list[Path] = []
-    if diff_output is not None:
-        write_png_atomic(diff_output, result.diff_image)
-        outputs.append(diff_output)
+    outputs: list[Path] = _write_maps(result, targets)
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
         for name, image in (("soft.png", soft), ("gl.png", gl), ("diff.png", result.diff_image)):
-            write_png_atomic(folder / name, image)
+            write_png_atomic(folder / name, to_uint8(image))    # rgba32f renders: 8 bits in the PNG
             outputs.append(folder / name)
 
     height, width = soft.shape[:2]
@@ -251,7 +286,7 @@ def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | Non
 
 def _compare_files(path_a: str, path_b: str, args: argparse.Namespace) -> int:
     """Compare two PNG files (compare A B)."""
-    from softras.imageio import read_png, write_png_atomic
+    from softras.imageio import read_png
 
     if args.out_dir is not None:
         raise CLIError("--out-dir applies to 'softras compare SCENE' only")
@@ -259,12 +294,9 @@ def _compare_files(path_a: str, path_b: str, args: argparse.Namespace) -> int:
         raise CLIError("--precision and --samples apply to 'softras compare SCENE' only")
     a = read_png(path_a)
     b = read_png(path_b)
-    diff_output = _check_output_file(args.output) if args.output else None
+    targets = _map_outputs(args)
     result = _compare(a, b, _tolerance(args, DEFAULT_TOLERANCE))
-    outputs = []
-    if diff_output is not None:
-        write_png_atomic(diff_output, result.diff_image)
-        outputs.append(diff_output)
+    outputs = _write_maps(result, targets)
     height, width = a.shape[:2]
     header = [f"{path_a} vs {path_b} ({width}x{height})"]
     extra = {"a": str(path_a), "b": str(path_b)}
@@ -401,17 +433,33 @@ def _fraction(low: float, high: float):
     return parse
 
 
-def _add_render_options(parser: argparse.ArgumentParser, *, backend: bool) -> None:
+def _add_render_options(parser: argparse.ArgumentParser, *, backend: bool, sampling: bool = False) -> None:
+    if sampling:
+        # softras render: any sample count and pattern of softras.sampling.
+        parser.add_argument("--samples", type=int, default=None, metavar="N",
+                            help="samples per pixel (default: the scene's); 1 or 4 with GL's pattern, "
+                                 "up to 1024 with --pattern")
+        parser.add_argument("--pattern", default=None,
+                            choices=("gl", "grid", "rotated_grid", "jittered", "halton", "poisson"),
+                            help="sample pattern (soft only; default gl: centre or llvmpipe's 4x); "
+                                 "grid, rotated_grid and jittered take N*N samples")
+        parser.add_argument("--seed", type=int, default=None, metavar="K",
+                            help="seed of the jittered and poisson patterns (default 0)")
+        parser.add_argument("--filter", choices=("box", "tent"), default=None,
+                            help="resolve filter (soft only): box (default) or a 2-pixel tent")
+        parser.add_argument("--framebuffer", choices=("rgba8", "rgba32f"), default=None,
+                            help="colour buffer (default: the scene's); rgba32f is written to the "
+                                 "PNG quantised to 8 bits")
     if backend:
         parser.add_argument("--backend", choices=("soft", "gl"), default="soft",
                             help="renderer: softras's pipeline or OpenGL through glref (default soft)")
     parser.add_argument("--precision", choices=("gl", "exact"), default=None,
                         help="softras precision: 'gl' reproduces OpenGL's snapping (default), "
                              "'exact' is float64 ground truth")
-    # Both renderers take 1 or 4 (4x MSAA at llvmpipe's positions); widen this
-    # when the pipeline's other sample patterns get a render option.
-    parser.add_argument("--samples", type=int, choices=(1, 4), default=None, metavar="N",
-                        help="samples per pixel, 1 or 4 (default: the scene's)")
+    if not sampling:
+        # Both renderers take 1 or 4 (4x MSAA at llvmpipe's positions).
+        parser.add_argument("--samples", type=int, choices=(1, 4), default=None, metavar="N",
+                            help="samples per pixel, 1 or 4 (default: the scene's)")
 
 
 def _add_output_options(parser: argparse.ArgumentParser, *, out_dir_default: str | None, out_dir_help: str) -> None:
@@ -435,16 +483,135 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     if args.runs < 1 or args.max_triangles < 1000 or not 256 <= args.max_side <= 2048:
         raise CLIError("bench: need --runs >= 1, --max-triangles >= 1000, 256 <= --max-side <= 2048")
-    if args.json_path:
-        from softras.imageio import check_writable
-        check_writable(args.json_path)
+    for path in (args.json_path, args.plot_path):
+        if path:
+            from softras.imageio import check_writable
+            check_writable(path)
     description = _gl_description()
     if description is None:
         raise CLIError("OpenGL unavailable: bench measures softras against glref")
     print(f"glref: {description}")
-    bench.run(runs=args.runs, max_triangles=args.max_triangles, max_side=args.max_side,
-              out_json=args.json_path)
+    bench.run(runs=args.runs, full=args.full, max_triangles=args.max_triangles, max_side=args.max_side,
+              out_json=args.json_path, out_plot=args.plot_path)
     return EXIT_OK
+
+
+def _pixel(text: str) -> tuple[int, int]:
+    """argparse type for ``--pixel X,Y`` (image coordinates, row 0 = top)."""
+    from softras.explain import parse_pixel
+
+    try:
+        return parse_pixel(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def cmd_explain(args: argparse.Namespace) -> int:
+    """``softras explain SCENE --pixel X,Y``: one pixel's history, beside glref's value."""
+    from softras import explain
+    from softras.pipeline import render_scene
+
+    scene = _load_scene(args.scene)
+    x, y = args.pixel
+    options = {"precision": args.precision or "gl", "samples": args.samples}
+    try:
+        explain.check_pixel(scene, x, y)
+        history = explain.explain_pixel(scene, x, y, **options)
+        rendered = render_scene(scene, **options)
+    except ValueError as error:      # the pixel, or an option the renderer refuses
+        raise CLIError(str(error)) from None
+    value = rendered[y, x]
+    rendered_value = [float(v) for v in value] if value.dtype.kind == "f" else [int(v) for v in value]
+    import glref
+
+    try:
+        gl_value, gl_note = explain.gl_pixel(scene, x, y, samples=args.samples)
+        gl = {"value": gl_value, "renderer": gl_note}
+    except (glref.GLUnavailable, ModuleNotFoundError) as error:   # no context, or no moderngl
+        gl_value, gl_note = None, f"OpenGL unavailable ({_one_line(error)})"
+        gl = {"value": None, "unavailable": _one_line(error)}
+    if args.json:
+        history["softras_image"] = rendered_value
+        history["gl"] = gl
+        print(json.dumps(history, indent=2))
+    else:
+        print(explain.format_text(history, gl_value=gl_value, gl_note=gl_note, rendered=rendered_value))
+    return EXIT_OK
+
+
+def cmd_conformance(args: argparse.Namespace) -> int:
+    """``softras conformance [PATH ...]``: every scene through both renderers, a verdict each.
+
+    Exit 0 when every scene passes or has a quality warning, 1 when any fails,
+    2 for bad input (a missing path, a bad scene, no scene matching -k, a bad
+    --shard or -j, an unwritable --report folder) or no OpenGL -- found before
+    anything is rendered or written.
+    """
+    from datetime import datetime, timezone
+
+    from softras import conformance, golden
+    from softras.scene import SceneError, load_scene
+
+    start = time.perf_counter()
+    if args.jobs < 1:
+        raise CLIError(f"-j {args.jobs}: need at least 1 process")
+    try:
+        paths = conformance.select(args.paths or [str(golden.SCENES_DIR)], patterns=args.patterns or (),
+                                   shard_spec=args.shard)
+    except conformance.ConformanceError as error:
+        raise CLIError(_one_line(error)) from None
+    for path in paths:  # bad scenes are bad input: exit 2 before any work
+        try:
+            load_scene(path)
+        except SceneError as error:
+            message = _one_line(error)
+            raise CLIError(message if str(path) in message else f"{path}: {message}") from None
+    report = _check_output_dir(args.report) if args.report is not None else None
+    try:
+        import glref
+    except ModuleNotFoundError as error:
+        if error.name not in ("moderngl", "glcontext"):
+            raise
+        raise CLIError(f"OpenGL reference renderer unavailable: {_one_line(error)}") from None
+    gl_name = _gl_description()
+    if gl_name is None:
+        try:
+            glref.info()
+        except glref.GLUnavailable as error:
+            raise CLIError(f"OpenGL unavailable: {_one_line(error)}") from None
+    try:
+        import flip_evaluator  # noqa: F401 - FLIP is part of every scene's figures
+    except ImportError:
+        raise CLIError("FLIP needs the Python package flip-evaluator: pip install flip-evaluator") from None
+
+    jobs = min(args.jobs, max(len(paths), 1))
+    shard_text = f", shard {args.shard}" if args.shard else ""
+    print(f"conformance: {len(paths)} scene{'s' if len(paths) != 1 else ''}{shard_text}, "
+          f"{jobs} process{'es' if jobs != 1 else ''}, GL: {gl_name}", flush=True)
+    bar = conformance.ProgressBar(len(paths))
+    try:
+        results = conformance.run(paths, jobs=jobs, on_result=bar.advance)
+    finally:
+        bar.close()
+    seconds = time.perf_counter() - start
+    tally = conformance.counts(results)
+
+    for result in sorted(results, key=lambda r: (conformance.VERDICT_ORDER[r.verdict], r.name)):
+        print(result.line())
+        if result.verdict != conformance.PASS:
+            for reason in result.reasons[1:]:
+                print(f"{'':<16}{reason}")
+    if report is not None:
+        from softras.report import write_report
+
+        meta = {"seconds": round(seconds, 3), "jobs": jobs, "gl_renderer": gl_name, "shard": args.shard,
+                "patterns": args.patterns or [], "paths": [str(path) for path in paths],
+                "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+        index = write_report(report, results, meta)
+        print(f"report: {index}")
+    print(f"conformance: {tally['total']} scene{'s' if tally['total'] != 1 else ''}: {tally['pass']} pass, {tally['warn']} quality warning, "
+          f"{tally['fail']} fail in {seconds:.1f} s (-j {jobs})")
+    return EXIT_FAILED if tally["fail"] else EXIT_OK
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -466,21 +633,32 @@ def build_parser() -> argparse.ArgumentParser:
                                  description="Render a scene file to a PNG image (RGBA, row 0 = top).")
     render.add_argument("scene", metavar="SCENE", help="scene file (JSON, format version 1)")
     render.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG file to write")
-    _add_render_options(render, backend=True)
+    _add_render_options(render, backend=True, sampling=True)
+    render.add_argument("--texture-filter", choices=("ripmap", "ewa"), default=None,
+                        help="soft only: filter every texture with a ripmap or EWA (Heckbert) "
+                             "instead of its min filter (softras.texture_beyond)")
     render.set_defaults(func=cmd_render)
 
     compare = commands.add_parser(
         "compare", help="compare two PNG files, or a scene's soft and gl renderings",
-        usage="softras compare (A.png B.png | SCENE) [-o DIFF.png] [--json] [--out-dir DIR]\n"
+        usage="softras compare (A.png B.png | SCENE) [-o DIFF.png] [--ssim-map SSIM.png]\n"
+              "                       [--flip-map FLIP.png] [--json] [--out-dir DIR]\n"
               "                       [--precision {gl,exact}] [--samples N] [--threshold N]\n"
               "                       [--max-bad-fraction F] [--min-ssim S]",
-        description="Compare two PNG files (A B), or render one scene file with both backends and "
-                    "compare the images with the scene's tolerance. Exit 0 on pass, 1 on fail.",
+        description="Compare two PNG files (A B; B is the reference), or render one scene file with "
+                    "both backends and compare the images with the scene's tolerance. Prints the largest "
+                    "difference, the fraction of bad pixels, the mean SSIM and the mean FLIP error "
+                    "(flip-evaluator). Exit 0 on pass, 1 on fail, 2 on missing or unreadable input "
+                    "(nothing written).",
     )
     compare.add_argument("inputs", nargs="+", metavar="INPUT",
                          help="two PNG files, or one scene file")
     compare.add_argument("-o", "--output", metavar="DIFF.png",
                          help="write the difference heat map to this PNG file")
+    compare.add_argument("--ssim-map", metavar="SSIM.png",
+                         help="write the SSIM map (1 - local SSIM; black = same structure) to this PNG file")
+    compare.add_argument("--flip-map", metavar="FLIP.png",
+                         help="write the FLIP error map (black = no visible difference) to this PNG file")
     _add_output_options(compare, out_dir_default=None,
                         out_dir_help="SCENE only: write soft.png, gl.png and diff.png into DIR")
     _add_render_options(compare, backend=False)
@@ -519,20 +697,66 @@ def build_parser() -> argparse.ArgumentParser:
                              "into DIR/<scene>/")
     golden.set_defaults(func=cmd_golden)
 
+    conformance = commands.add_parser(
+        "conformance", help="run every scene through both renderers: pass, quality warning or fail",
+        description="Render each scene with softras and OpenGL and judge it with the scene's tolerance "
+                    "(else defaults for its features): PASS within tolerance on every pixel, QUALITY "
+                    "WARNING when only pixels of the ambiguity mask (answers that depend on implementation "
+                    "choices) break it, FAIL otherwise, with the stage that disagrees. Exit 0 when nothing "
+                    "fails, 1 when a scene fails, 2 on bad input or no OpenGL.",
+    )
+    conformance.add_argument("paths", nargs="*", metavar="PATH",
+                             help="scene files or folders of them (default: all of scenes/)")
+    conformance.add_argument("--report", default=None, metavar="DIR",
+                             help="write index.html, results.json, junit.xml and per-scene pictures into DIR")
+    conformance.add_argument("-k", dest="patterns", action="append", default=None, metavar="PATTERN",
+                             help="only scenes whose name contains PATTERN, or matches it as a glob "
+                                  "(*, ?, [..]); repeat for several")
+    conformance.add_argument("--shard", default=None, metavar="I/N",
+                             help="only shard I of N (1-based; round robin over the sorted names)")
+    conformance.add_argument("-j", "--jobs", type=int, default=1, metavar="N",
+                             help="worker processes (each with its own GL context; default 1)")
+    conformance.set_defaults(func=cmd_conformance)
+
     bench = commands.add_parser(
         "bench", help="measure softras's quality levels against glref (time, ratio, error)",
         description="Render generated benchmark scenes with glref and with each softras quality level "
                     "in one process, warm, and print median times, ratios to glref, throughput and "
-                    "error against an exact 4x-MSAA ground truth, plus how cost grows.",
+                    "error against an exact 16-sample ground truth, peak memory, plus how cost grows.",
     )
-    bench.add_argument("--runs", type=int, default=5, help="timed runs per figure (median; default 5)")
-    bench.add_argument("--max-triangles", type=int, default=100_000,
-                       help="largest triangle count of the scaling sweep (default 100000; up to 1M)")
-    bench.add_argument("--max-side", type=int, default=1024,
-                       help="largest image side of the scaling sweep (default 1024; up to 2048)")
+    bench.add_argument("--runs", type=int, default=3, help="timed runs per figure (median; default 3)")
+    size = bench.add_mutually_exclusive_group()
+    size.add_argument("--quick", dest="full", action="store_false", default=False,
+                      help="the default subset: 512^2 scenes, sweeps to 100k triangles and 1024^2 (minutes)")
+    size.add_argument("--full", dest="full", action="store_true",
+                      help="every scene and level: sweeps to 1M triangles and 2048^2")
+    bench.add_argument("--max-triangles", type=int, default=1_000_000,
+                       help="cap of the triangle sweep (default 1000000)")
+    bench.add_argument("--max-side", type=int, default=2048,
+                       help="cap of the image-side sweep (default 2048)")
     bench.add_argument("--json", dest="json_path", default=None, metavar="OUT.json",
                        help="also write the figures as JSON")
+    bench.add_argument("--plot", dest="plot_path", default=None, metavar="OUT.png",
+                       help="also write a PNG plot of time (relative to glref) against error")
     bench.set_defaults(func=cmd_bench)
+
+    explain = commands.add_parser(
+        "explain", help="the history of one pixel through every stage, beside glref's value",
+        description="Explain one pixel: every draw and triangle (or line) that reached it, its "
+                    "window-space vertices, edge functions and coverage per sample (fill rule on "
+                    "ties), barycentrics, depth test, texture lookups, shading terms, blending per "
+                    "sample and the resolved value, beside softras's rendered value and glref's.",
+    )
+    explain.add_argument("scene", metavar="SCENE", help="scene file (JSON, format version 1)")
+    explain.add_argument("--pixel", required=True, type=_pixel, metavar="X,Y",
+                         help="the pixel in image coordinates: column X from the left, row Y from "
+                              "the top, as the PNG is seen (GL window y = height - 1 - Y)")
+    explain.add_argument("--precision", choices=("gl", "exact"), default=None,
+                         help="softras precision (default gl)")
+    explain.add_argument("--samples", type=int, default=None, metavar="N",
+                         help="samples per pixel (default: the scene's)")
+    explain.add_argument("--json", action="store_true", help="print the history as JSON")
+    explain.set_defaults(func=cmd_explain)
     return parser
 
 
