@@ -14,14 +14,14 @@ up, rasterization, depth test, blending into an RGBA8 -- or, for a scene's
 "framebuffer": "rgba32f", an RGBA32F -- renderbuffer). The
 readback is flipped so the returned image has row 0 = top of the picture.
 
-Textures: the texels and every mip level come from `softras.texture.prepare`
+Textures: the texels and every mip level come from `softras.scene.Texture.levels`
 (premultiplied RGBA8, the mip chain computed once there) and are uploaded
 level by level, so both renderers filter identical bytes; the sampler state
 is set with glTextureParameteri.  Lighting (flat / gouraud / phong
 Blinn-Phong in world space) uses lit.vert / lit.frag with lighting.glsl, and
 lit.geom.glsl for flat shading.  A Phong material's normal or bump map is a
-second sampler (unit 1) with softras's per-vertex tangents as the attribute
-``in_tangent``; displaced meshes arrive already displaced in ``Draw.mesh``.  llvmpipe's sampling depends on
+second sampler (unit 1) with the scene model's per-vertex tangents
+(``Mesh.tangents``) as the attribute ``in_tangent``; displaced meshes arrive already displaced in ``Draw.mesh``.  llvmpipe's sampling depends on
 GALLIVM_PERF, read once per process and recorded by `glref.info()`.
 """
 
@@ -179,16 +179,14 @@ def _gl_function(name: str, *argtypes):
 def _upload_texture(ctx, texture):
     """A GL texture holding exactly softras's texels and sampler state.
 
-    Every level comes from `softras.texture.prepare` (premultiplied RGBA8,
-    mip chain computed once there) and is uploaded explicitly, so both
-    renderers filter identical texels; image row 0 (t = 0) is the first row
+    Every level comes from `Texture.levels` of the scene model (premultiplied
+    RGBA8, the mip chain computed once there: the bytes softras samples) and
+    is uploaded explicitly, so both renderers filter identical texels; image row 0 (t = 0) is the first row
     uploaded, which is GL's t = 0 too.
     """
     import ctypes
-    from softras import texture as softras_texture
 
-    ready = softras_texture.prepare(texture)
-    levels = ready.used_levels
+    levels = texture.levels if texture.mipmapped else texture.levels[:1]
     height, width = levels[0].shape[:2]
     tex = ctx.texture((width, height), 4, np.ascontiguousarray(levels[0]).tobytes(), alignment=1)
     parami = _gl_function("glTextureParameteri", ctypes.c_uint, ctypes.c_uint, ctypes.c_int)
@@ -199,11 +197,11 @@ def _upload_texture(ctx, texture):
             tex.write(np.ascontiguousarray(level).tobytes(), level=i, alignment=1)
     parami(tex.glo, _GL_TEXTURE_BASE_LEVEL, 0)
     parami(tex.glo, _GL_TEXTURE_MAX_LEVEL, len(levels) - 1)
-    parami(tex.glo, _GL_TEXTURE_MIN_FILTER, _GL_FILTER[ready.min_filter])
-    parami(tex.glo, _GL_TEXTURE_MAG_FILTER, _GL_FILTER[ready.mag_filter])
-    parami(tex.glo, _GL_TEXTURE_WRAP_S, _GL_WRAP[ready.wrap_s])
-    parami(tex.glo, _GL_TEXTURE_WRAP_T, _GL_WRAP[ready.wrap_t])
-    paramf(tex.glo, _GL_TEXTURE_MAX_ANISOTROPY, float(ready.max_anisotropy))
+    parami(tex.glo, _GL_TEXTURE_MIN_FILTER, _GL_FILTER[texture.min_filter])
+    parami(tex.glo, _GL_TEXTURE_MAG_FILTER, _GL_FILTER[texture.mag_filter])
+    parami(tex.glo, _GL_TEXTURE_WRAP_S, _GL_WRAP[texture.wrap_s])
+    parami(tex.glo, _GL_TEXTURE_WRAP_T, _GL_WRAP[texture.wrap_t])
+    paramf(tex.glo, _GL_TEXTURE_MAX_ANISOTROPY, float(texture.max_anisotropy))
     return tex
 
 
@@ -370,9 +368,8 @@ def _set_lighting(prog, scene, draw) -> None:
 
 def _set_normal_mapping(ctx, prog, scene, draw, own):
     """Normal / bump map of a Phong draw: the map on texture unit 1, its
-    uniforms, and the vertex buffer of softras's tangents (the same values
-    softras interpolates).  Returns the (buffer, format, name) VAO entry."""
-    from softras import meshes
+    uniforms, and the vertex buffer of the mesh's tangents (``Mesh.tangents``:
+    the same values softras interpolates).  Returns the (buffer, format, name) VAO entry."""
     mesh, mat = draw.mesh, draw.material
     name = mat.normal_map if mat.normal_map is not None else mat.bump_map
     tex = own(_upload_texture(ctx, scene.textures[name]))
@@ -385,8 +382,7 @@ def _set_normal_mapping(ctx, prog, scene, draw, own):
         prog["u_bump_texel"].value = (1.0 / width, 1.0 / height)
         prog["u_bump_scale"].value = float(mat.bump_scale)
     prog["u_handedness"].value = -1.0 if np.linalg.det(np.asarray(draw.world)[:3, :3]) < 0 else 1.0
-    tangents = meshes.vertex_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.indices)
-    return (own(ctx.buffer(np.ascontiguousarray(tangents, np.float32))), "4f", "in_tangent")
+    return (own(ctx.buffer(np.ascontiguousarray(mesh.tangents, np.float32))), "4f", "in_tangent")
 
 
 def _apply_state(ctx, mgl, fbo, draw) -> None:

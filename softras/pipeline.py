@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import clip as clip_stage
-from . import fastpath, fragment, interpolate, lines, meshes, ops, rasterize, sampling, setup, texture, vertex
+from . import fastpath, fragment, interpolate, lines, ops, rasterize, sampling, setup, texture, vertex
 from . import texture_beyond
 from .scene import Scene, ordered_draws
 
@@ -44,12 +44,11 @@ def sample_positions(samples: int, pattern: str | None = None, seed: int = 0) ->
 def _mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal, precision,
                     texture_fixed_point):
     """Phong shading with a normal or bump map: (F, 3) world normals perturbed
-    per fragment (softras.fragment: tangent frames from softras.meshes,
+    per fragment (softras.fragment: tangent frames from Mesh.tangents,
     the map sampled like any texture, with the uv's derivatives)."""
     mesh, material = draw.mesh, draw.material
     gl = precision == "gl"
-    tangents = vertex.world_tangents(meshes.vertex_tangents(mesh.positions, mesh.normals, mesh.uvs,
-                                                            mesh.indices), draw.world)
+    tangents = vertex.world_tangents(mesh.tangents, draw.world)
     tangent = interpolate.interpolate(persp, corners(tangents)[t])
     uvs = mesh.uvs.astype(np.float32).astype(np.float64) if gl else mesh.uvs
     corner_uv = corners(uvs)[t]

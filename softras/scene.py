@@ -37,6 +37,7 @@ meaning):
 from __future__ import annotations
 
 import difflib
+import functools
 import json
 import math
 import numbers
@@ -46,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from softras import meshes
+from softras import meshes, texels
 
 FORMAT_VERSION = 1
 MAX_SIDE = 16384                   # pixels per side
@@ -64,6 +65,7 @@ LIGHT_TYPES = ("point", "directional")
 WRAP_MODES = ("repeat", "clamp_to_edge", "mirrored_repeat")
 MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
                "nearest_mipmap_linear", "linear_mipmap_linear")
+MIPMAP_FILTERS = MIN_FILTERS[2:]
 MAG_FILTERS = ("nearest", "linear")
 PROCEDURAL_TEXTURES = ("checker", "gradient", "noise", "bumps")
 
@@ -106,6 +108,14 @@ class Mesh:
     normals: np.ndarray | None  # (N, 3) float64, model space
     uvs: np.ndarray | None     # (N, 2) float64, v = 0 at the image top
 
+    @functools.cached_property
+    def tangents(self) -> np.ndarray:
+        """(N, 4) float64 per-vertex tangent frames for normal and bump mapping:
+        xyz = unit tangent along +s (model space, orthogonal to the normal),
+        w = handedness +-1 (`softras.meshes.vertex_tangents`).  Computed once,
+        on first use, and read by both renderers."""
+        return _readonly(meshes.vertex_tangents(self.positions, self.normals, self.uvs, self.indices))
+
 
 @dataclass(frozen=True, eq=False)
 class Material:
@@ -140,6 +150,19 @@ class Texture:
     procedural: str | None = None             # "checker" | "gradient" | "noise"
     size: tuple[int, int] | None = None       # (width, height) of a procedural texture
     params: dict = field(default_factory=dict)  # its parameters, defaults filled in
+
+    @property
+    def mipmapped(self) -> bool:
+        """Whether the min filter reads mip levels (else only level 0 is used)."""
+        return self.min_filter in MIPMAP_FILTERS
+
+    @functools.cached_property
+    def levels(self) -> tuple[np.ndarray, ...]:
+        """The texel data both renderers use: the premultiplied mip chain,
+        level 0 down to 1x1, each (H_l, W_l, 4) uint8, row 0 = v 0
+        (`softras.texels`).  Decoded and built once, on first use."""
+        level0 = texels.premultiply_rgba8(texels.source_texels(self))
+        return tuple(_readonly(level) for level in texels.mip_chain(level0))
 
 
 @dataclass(frozen=True, eq=False)

@@ -307,3 +307,20 @@ def test_unsupported_material_raises_before_rendering():
                            lights=(), draws=(lit_lines,), source="<test>")
     with pytest.raises(NotImplementedError, match="lit lines"):
         glref.render(fake)
+
+
+def test_glref_imports_only_the_scene_model_from_softras():
+    """DESIGN.md section 1: imports go one way, glref may import softras.scene
+    (texels and tangents reach it as scene data: Texture.levels, Mesh.tangents)."""
+    import ast
+    from pathlib import Path
+
+    imported = set()
+    for path in Path(glref.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("softras"):
+                imported.add(node.module if node.module != "softras" else
+                             "softras." + ",".join(alias.name for alias in node.names))
+            elif isinstance(node, ast.Import):
+                imported.update(alias.name for alias in node.names if alias.name.startswith("softras"))
+    assert imported == {"softras.scene"}

@@ -15,7 +15,7 @@ import pytest
 
 import softras
 from conftest import SCENES, write_failure_images
-from softras import texture
+from softras import texels, texture
 
 PALETTE = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 0], [255, 0, 255],
                     [0, 255, 255], [255, 255, 255], [128, 128, 128], [128, 0, 0]], np.uint8)
@@ -37,7 +37,7 @@ GRAZING_FLOOR = {
 @pytest.fixture
 def solid_levels(monkeypatch):
     """Mip level k of every texture is the solid colour PALETTE[k]."""
-    real_chain = texture.mip_chain
+    real_chain = texels.mip_chain
 
     def chain(level0):
         levels = []
@@ -48,7 +48,7 @@ def solid_levels(monkeypatch):
             levels.append(solid)
         return tuple(levels)
 
-    monkeypatch.setattr(texture, "mip_chain", chain)
+    monkeypatch.setattr(texels, "mip_chain", chain)
 
 
 def level_of(image: np.ndarray) -> np.ndarray:

@@ -1,0 +1,148 @@
+"""Texel data of a scene texture: decoding, procedural textures, premultiplication
+and the mip chain -- the scene layer's half of texturing.
+
+Both renderers read the result through ``softras.scene.Texture.levels`` (computed
+once per texture, on first use), so softras samples and glref uploads identical
+bytes, and glref needs no module of softras but `softras.scene`.
+
+- :func:`source_texels` reads a PNG through Pillow, or generates a procedural
+  texture (checker, gradient, noise, bumps), as straight RGBA8, row 0 = the top
+  of the image = v 0 (DESIGN.md section 3).
+- :func:`premultiply_rgba8` premultiplies at load (before mip generation):
+  ``c' = round(c * a / 255)``.
+- :func:`mip_chain` builds the levels as glGenerateMipmap would: level sizes
+  ``max(1, floor(size / 2))`` down to 1x1 (non-power-of-two too), each texel
+  the rounded mean of a 2x2 box of the level above (2x1 or 1x1 where the level
+  above is one texel thin).  With an odd size the last row or column of the
+  level above has no box and is skipped: that is what a 2x2 box with
+  ``floor(size / 2)`` means.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+
+
+def source_texels(texture) -> np.ndarray:
+    """Level 0 of a scene texture (`softras.scene.Texture`) as straight RGBA: (H, W, 4) uint8, row 0 = v 0."""
+    if texture.image is not None:
+        return load_image(texture.image)
+    return procedural_texels(texture.procedural, texture.size, texture.params)
+
+
+def load_image(path: str) -> np.ndarray:
+    """A picture file (PNG, anything Pillow reads) -> (H, W, 4) uint8 straight RGBA.
+
+    Row 0 is the top row of the file, which is texture row t = 0.
+    """
+    from PIL import Image
+    with Image.open(path) as image:
+        return np.ascontiguousarray(np.asarray(image.convert("RGBA"), dtype=np.uint8))
+
+
+def _rgba8(color) -> np.ndarray:
+    """(4,) float colour in [0, 1] -> (4,) uint8, round(c * 255)."""
+    return np.rint(np.asarray(color, np.float64) * 255.0).astype(np.uint8)
+
+
+def procedural_texels(kind: str, size: tuple[int, int], params: dict) -> np.ndarray:
+    """Generate a procedural texture: (H, W, 4) uint8 straight RGBA, row 0 = v 0.
+
+    checker : ``squares`` x ``squares`` cells; texel (i, j) is in cell
+        (i * squares // W, j * squares // H) and has ``color0`` where the cell
+        indices sum to an even number, ``color1`` elsewhere (so the top-left
+        cell is color0).
+    gradient : ``color0`` to ``color1`` across the width ("horizontal", left to
+        right) or height ("vertical", top to bottom), sampled at texel centres:
+        ``mix(color0, color1, (i + 0.5) / W)``, rounded to bytes.
+    noise : white noise, RGB uniform in 0..255 from ``numpy.random.default_rng(seed)``,
+        alpha 255.
+    bumps : a height map for bump and displacement mapping: ``cells`` x
+        ``cells`` round bumps, grey (R = G = B = height), alpha 255.  At texel
+        centre (x, y) = ((i + 0.5) / W, (j + 0.5) / H) the cell-local position
+        is ``f = frac((x, y) * cells) - 1/2`` and the height
+        ``h = (1 + cos(pi min(2 |f|, 1))) / 2`` (1 at a cell centre, 0 from
+        the inscribed circle outwards), rounded to bytes ``round(255 h)``.
+    """
+    width, height = int(size[0]), int(size[1])
+    if kind == "checker":
+        squares = int(params["squares"])
+        ci = (np.arange(width) * squares) // width
+        cj = (np.arange(height) * squares) // height
+        odd = ((cj[:, None] + ci[None, :]) % 2).astype(bool)
+        out = np.where(odd[..., None], _rgba8(params["color1"]), _rgba8(params["color0"]))
+        return np.ascontiguousarray(out.astype(np.uint8))
+    if kind == "gradient":
+        c0 = np.asarray(params["color0"], np.float64)
+        c1 = np.asarray(params["color1"], np.float64)
+        if params["direction"] == "horizontal":
+            f = (np.arange(width) + 0.5) / width
+            row = c0 + f[:, None] * (c1 - c0)                      # (W, 4)
+            out = np.broadcast_to(row[None], (height, width, 4))
+        else:
+            f = (np.arange(height) + 0.5) / height
+            col = c0 + f[:, None] * (c1 - c0)                      # (H, 4)
+            out = np.broadcast_to(col[:, None], (height, width, 4))
+        return np.ascontiguousarray(np.rint(out * 255.0).astype(np.uint8))
+    if kind == "noise":
+        rng = np.random.default_rng(int(params["seed"]))
+        out = np.empty((height, width, 4), np.uint8)
+        out[..., :3] = rng.integers(0, 256, size=(height, width, 3), dtype=np.uint8)
+        out[..., 3] = 255
+        return out
+    if kind == "bumps":
+        cells = int(params["cells"])
+        fx = np.mod((np.arange(width) + 0.5) / width * cells, 1.0) - 0.5     # (W,)
+        fy = np.mod((np.arange(height) + 0.5) / height * cells, 1.0) - 0.5   # (H,)
+        radius = np.minimum(2.0 * np.hypot(fx[None, :], fy[:, None]), 1.0)   # (H, W)
+        grey = np.rint(255.0 * (1.0 + np.cos(np.pi * radius)) / 2.0).astype(np.uint8)
+        out = np.empty((height, width, 4), np.uint8)
+        out[..., :3] = grey[..., None]
+        out[..., 3] = 255
+        return out
+    raise ValueError(f"unknown procedural texture {kind!r}")
+
+
+def premultiply_rgba8(straight: np.ndarray) -> np.ndarray:
+    """Straight (..., 4) uint8 RGBA -> premultiplied uint8, ``round(c * a / 255)``."""
+    s = straight.astype(np.int32)
+    out = s.copy()
+    out[..., :3] = (s[..., :3] * s[..., 3:4] * 2 + 255) // 510      # round half up
+    return out.astype(np.uint8)
+
+
+def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
+    """(width, height) of every level, ``max(1, floor(size / 2))`` down to 1x1.
+
+    >>> mip_sizes(5, 3)
+    [(5, 3), (2, 1), (1, 1)]
+    """
+    sizes = [(int(width), int(height))]
+    while sizes[-1] != (1, 1):
+        w, h = sizes[-1]
+        sizes.append((max(1, w // 2), max(1, h // 2)))
+    return sizes
+
+
+def downsample(level: np.ndarray) -> np.ndarray:
+    """The next mip level: 2x2 box (2x1 / 1x2 where the level is one texel thin),
+    rounded to nearest (halves up).  (H, W, C) uint8 -> uint8."""
+    h, w = level.shape[:2]
+    nh, nw = max(1, h // 2), max(1, w // 2)
+    x = level.astype(np.int32)
+    fy = 2 if h > 1 else 1
+    fx = 2 if w > 1 else 1
+    x = x[:nh * fy, :nw * fx]
+    total = x.reshape(nh, fy, nw, fx, -1).sum(axis=(1, 3))
+    n = fy * fx
+    return ((total + n // 2) // n).astype(np.uint8)
+
+
+def mip_chain(level0: np.ndarray) -> tuple[np.ndarray, ...]:
+    """All levels from level 0 down to 1x1 (see :func:`downsample`)."""
+    levels = [np.ascontiguousarray(level0)]
+    while levels[-1].shape[:2] != (1, 1):
+        levels.append(downsample(levels[-1]))
+    return tuple(levels)
