@@ -372,7 +372,7 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
         mapping = [None] * len(t)
         if material.normal_map is not None or material.bump_map is not None:
             interpolated_normal = normal
-            normal = pipeline._mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
+            normal = pipeline.mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
                                               precision, fixed_point)
             mapping = [{"map": material.normal_map or material.bump_map,
                         "kind": "normal map" if material.normal_map is not None
@@ -393,19 +393,12 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
     tex_history = [None] * len(t)
     if material.texture is not None:
         tex = texture.prepare(scene.textures[material.texture])
-        uvs = mesh.uvs.astype(np.float32).astype(np.float64) if gl else mesh.uvs
-        corner_uv = corners(uvs)
-        st = interpolate.interpolate(persp, corner_uv[t])
-        if gl:
-            ddx, ddy = interpolate.quad_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y,
-                                                    corner_uv[t])
-        else:
-            ddx, ddy = interpolate.analytic_derivatives(tris.window[t], tris.inv_w[t], centres,
-                                                        corner_uv[t])
+        corner_uv, st, ddx, ddy = pipeline.uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags,
+                                                           centres, gl)
         texel = texture.sample(tex, st, ddx, ddy, precision, fixed_point)
         tex_history = [dict(_texture_history(tex, st[f:f + 1], ddx[f:f + 1], ddy[f:f + 1], precision,
                                              fixed_point, texel[f]),
-                            corner_uv=corner_uv[t[f]],
+                            corner_uv=corner_uv[f],
                             derivatives="per 2x2 quad: ddx = TR - TL, ddy = BL - TL" if gl
                             else "analytic at the pixel centre")
                        for f in range(len(t))]

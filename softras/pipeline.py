@@ -41,7 +41,28 @@ def sample_positions(samples: int, pattern: str | None = None, seed: int = 0) ->
     return sampling.sample_positions(samples, pattern, seed)
 
 
-def _mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal, precision,
+def uv_at_fragments(uvs, corners, persp, tris, t, frags, centres, gl: bool):
+    """Texture coordinates of a draw's fragments and their screen derivatives.
+
+    uvs : (N, 2) the mesh's per-vertex uvs (rounded to float32 in gl precision,
+    as GL's vertex attributes); corners : the draw's (N, K) -> (T', 3, K)
+    corner function; persp : (F, 3) perspective weights; t : (F,) set-up
+    triangle per fragment.  Returns corner_uv (F, 3, 2), st (F, 2) and the
+    derivatives ddx, ddy (F, 2) in uv per window pixel: per 2x2 quad in gl
+    precision (llvmpipe's TR - TL, BL - TL), analytic at the pixel centre in
+    exact precision.
+    """
+    uvs = uvs.astype(np.float32).astype(np.float64) if gl else uvs
+    corner_uv = corners(uvs)[t]
+    st = interpolate.interpolate(persp, corner_uv)
+    if gl:
+        ddx, ddy = interpolate.quad_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y, corner_uv)
+    else:
+        ddx, ddy = interpolate.analytic_derivatives(tris.window[t], tris.inv_w[t], centres, corner_uv)
+    return corner_uv, st, ddx, ddy
+
+
+def mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal, precision,
                     texture_fixed_point):
     """Phong shading with a normal or bump map: (F, 3) world normals perturbed
     per fragment (softras.fragment: tangent frames from Mesh.tangents,
@@ -50,13 +71,7 @@ def _mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal
     gl = precision == "gl"
     tangents = vertex.world_tangents(mesh.tangents, draw.world)
     tangent = interpolate.interpolate(persp, corners(tangents)[t])
-    uvs = mesh.uvs.astype(np.float32).astype(np.float64) if gl else mesh.uvs
-    corner_uv = corners(uvs)[t]
-    st = interpolate.interpolate(persp, corner_uv)
-    if gl:
-        ddx, ddy = interpolate.quad_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y, corner_uv)
-    else:
-        ddx, ddy = interpolate.analytic_derivatives(tris.window[t], tris.inv_w[t], centres, corner_uv)
+    _, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags, centres, gl)
     if material.normal_map is not None:
         tex = texture.prepare(scene.textures[material.normal_map])
         mapped = fragment.normal_map_normals(texture.sample(tex, st, ddx, ddy, precision, texture_fixed_point))
@@ -224,7 +239,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
             normal = interpolate.interpolate(persp, corners(world_normals)[t])
             normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
             if material.normal_map is not None or material.bump_map is not None:
-                normal = _mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
+                normal = mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
                                          precision, texture_fixed_point)
             lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
             colors = np.concatenate([lit, colors[:, 3:]], axis=1)
@@ -233,15 +248,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         texel = None
         if material.texture is not None:
             tex = texture.prepare(scene.textures[material.texture])
-            uvs = mesh.uvs.astype(np.float32).astype(np.float64) if gl else mesh.uvs
-            corner_uv = corners(uvs)
-            st = interpolate.interpolate(persp, corner_uv[t])
-            if gl:
-                ddx, ddy = interpolate.quad_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y,
-                                                        corner_uv[t])
-            else:
-                ddx, ddy = interpolate.analytic_derivatives(tris.window[t], tris.inv_w[t], centres,
-                                                            corner_uv[t])
+            _, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags, centres, gl)
             texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
                                                   texture_filter)
         rgba = fragment.shade_unlit(colors, np.ones(4), texel)
