@@ -7,9 +7,11 @@ The framebuffer is per sample, in GL's y-up window space:
 
 Fragments are applied strictly in order (GL's primitive order), one covered
 sample at a time, by a numba kernel.  In gl precision the colour buffer is
-RGBA8 UNORM: fragment and destination colours are clamped to [0, 1] and every
-stored value is rounded to k/255 as GL does, and depths are rounded to the
-24-bit depth buffer's k/(2^24 - 1).
+RGBA8 UNORM and written as Mesa 22.3 llvmpipe writes it: the fragment colour
+is converted to bytes first (`unorm8`) and blended in 8-bit integer
+arithmetic (`blend_unorm8`); the buffer holds the bytes as k/255.  Depths are
+rounded to the 24-bit depth buffer's k/(2^24 - 1).  Exact precision and
+rgba32f framebuffers blend in floating point (`_blend`).
 """
 
 from __future__ import annotations
@@ -91,6 +93,75 @@ def _blend(mode, src, dst, out):
 
 
 @numba.njit(cache=True)
+def unorm8(v):
+    """One fragment colour channel (float, premultiplied) -> the UNORM8 byte llvmpipe stores.
+
+    llvmpipe's lp_build_conv (float32 -> unorm8, AVX path): ``min(v, 1)``,
+    the float32 product ``v * 255``, rounded half to even (cvtps2dq), then
+    saturated to [0, 255] by the pack instructions; NaN gives 0.  softras's
+    float64 colour is first rounded to float32, as the shader's output is.
+    Returns an int in [0, 255].
+    """
+    v32 = np.float32(v)
+    if not v32 > 0:                 # negative or NaN
+        return 0
+    if v32 >= 1:
+        return 255
+    return int(np.rint(np.float64(np.float32(v32 * np.float32(255.0)))))
+
+
+@numba.njit(cache=True)
+def mul_unorm8(a, b):
+    """a * b / 255 for bytes a, b as llvmpipe's lp_build_mul_norm (Mesa 22.3) computes it.
+
+    The geometric-series approximation with rounding, in 16-bit integers:
+    ``t = a * b; (t + (t >> 8) + 0x80) >> 8``.  It equals round(a * b / 255)
+    except on 24 of the 65536 pairs, where the exact quotient is k + 0.502
+    and it gives k (152 * 229 / 255 = 136.502 -> 136).
+    """
+    t = a * b
+    return (t + (t >> 8) + 0x80) >> 8
+
+
+@numba.njit(cache=True)
+def blend_unorm8(mode, src, dst, out):
+    """Blend bytes as llvmpipe's AoS blend does for an RGBA8 UNORM buffer.
+
+    src : (4,) int64 fragment bytes (`unorm8`), dst : (4,) int64 stored
+    bytes, out : (4,) int64 result bytes; mode : BLEND_MODES code.  The
+    factors multiply with `mul_unorm8` (a factor ONE is no multiplication),
+    ONE_MINUS_SRC_ALPHA is ``255 - a``, and the equation saturates: add with
+    ``min(., 255)``, subtract and reverse_subtract with ``max(., 0)``; min and
+    max compare the bytes (GL ignores their factors).  "over_straight"
+    (SRC_ALPHA, ONE_MINUS_SRC_ALPHA) is two products and a saturating add,
+    like every other factor pair (lp_build_blend's lerp shortcut for
+    complementary factors is not taken for it in llvmpipe's AoS blend).
+    """
+    alpha = src[3]
+    inv_alpha = 255 - alpha
+    for ch in range(4):
+        s = src[ch]
+        d = dst[ch]
+        if mode == 0:
+            v = s
+        elif mode == 1:
+            v = min(s + mul_unorm8(d, inv_alpha), 255)
+        elif mode == 2:
+            v = min(mul_unorm8(s, alpha) + mul_unorm8(d, inv_alpha), 255)
+        elif mode == 3:
+            v = min(s + d, 255)
+        elif mode == 4:
+            v = max(s - d, 0)
+        elif mode == 5:
+            v = max(d - s, 0)
+        elif mode == 6:
+            v = min(s, d)
+        else:
+            v = max(s, d)
+        out[ch] = v
+
+
+@numba.njit(cache=True)
 def apply_fragments(x, y, mask, z, rgba, color, depth, depth_func, depth_write, blend, quantize):
     """Depth-test, blend and store fragments in order.
 
@@ -98,20 +169,25 @@ def apply_fragments(x, y, mask, z, rgba, color, depth, depth_func, depth_write, 
     per sample; rgba : (F, 4) premultiplied colour (one shading per pixel);
     color, depth : the framebuffer, updated in place.
     depth_func : DEPTH_FUNCS code (0 = test disabled: pass, never write);
-    depth_write : bool; blend : BLEND_MODES code; quantize : RGBA8 rounding.
+    depth_write : bool; blend : BLEND_MODES code; quantize : an RGBA8 buffer
+    (gl precision): the colour buffer holds k/255, the fragment colour is
+    converted with `unorm8` and blended with `blend_unorm8`; otherwise the
+    float blend `_blend`, unclamped.
     """
     n_samples = depth.shape[2]
     src = np.empty(4)
     out = np.empty(4)
+    src8 = np.empty(4, np.int64)
+    dst8 = np.empty(4, np.int64)
+    out8 = np.empty(4, np.int64)
     write_z = depth_write and depth_func != 0
     for f in range(x.shape[0]):
         px = x[f]
         py = y[f]
         for ch in range(4):
-            v = rgba[f, ch]
+            src[ch] = rgba[f, ch]
             if quantize:
-                v = min(max(v, 0.0), 1.0)
-            src[ch] = v
+                src8[ch] = unorm8(rgba[f, ch])
         for s in range(n_samples):
             if not (mask[f] >> s) & 1:
                 continue
@@ -119,12 +195,16 @@ def apply_fragments(x, y, mask, z, rgba, color, depth, depth_func, depth_write, 
                 continue
             if write_z:
                 depth[py, px, s] = z[f, s]
-            _blend(blend, src, color[py, px, s], out)
-            for ch in range(4):
-                v = out[ch]
-                if quantize:
-                    v = np.rint(min(max(v, 0.0), 1.0) * 255.0) / 255.0
-                color[py, px, s, ch] = v
+            if quantize:
+                for ch in range(4):
+                    dst8[ch] = np.int64(np.rint(color[py, px, s, ch] * 255.0))
+                blend_unorm8(blend, src8, dst8, out8)
+                for ch in range(4):
+                    color[py, px, s, ch] = out8[ch] / 255.0
+            else:
+                _blend(blend, src, color[py, px, s], out)
+                for ch in range(4):
+                    color[py, px, s, ch] = out[ch]
 
 
 RESOLVE_FILTERS = ("box", "tent")
