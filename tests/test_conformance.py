@@ -25,7 +25,9 @@ from softras.conformance import FAIL, PASS, WARN
 
 from conftest import SCENES
 
-BLEND = SCENES / "blend_equations.json"
+# A scene with a known, legitimate 1/255 colour difference from llvmpipe (5 px:
+# float32 vs float64 rounding in Phong shading of a textured sphere).
+KNOWN_1_LEVEL = SCENES / "lit_textured_sphere.json"
 EXACT = {"threshold": 0, "max_bad_fraction": 0.0, "min_ssim": 0.99}
 
 # Pixel camera: 1 unit = 1 pixel, z in [-1, 1].
@@ -257,16 +259,16 @@ def test_a_passing_scene(tmp_path):
 
 @pytest.mark.gl
 def test_a_known_one_level_difference_fails_with_tolerance_zero():
-    result = conformance.check_scene(BLEND)
-    assert result.verdict == PASS, result.reasons            # its own tolerance: threshold 1
-    broken = conformance.check_scene(BLEND, tolerance=EXACT)
+    result = conformance.check_scene(KNOWN_1_LEVEL)
+    assert result.verdict == PASS, result.reasons            # its own tolerance
+    broken = conformance.check_scene(KNOWN_1_LEVEL, tolerance=EXACT)
     assert broken.verdict == FAIL
     assert broken.figures["max_diff"] == 1 and broken.figures["bad_outside_mask"] > 0
-    # Coverage agrees; the blended colours differ: the reason names the colour stage and the blend.
+    # Coverage agrees; the shaded colours differ: the reason names the colour stage and the shading.
     assert broken.figures["coverage_mismatch_pixels"] == 0
     stages = [reason.split(":")[0] for reason in broken.reasons[1:]]
     assert stages and set(stages) == {"colour"}
-    assert any("blend" in reason for reason in broken.reasons[1:])
+    assert any("phong shading" in reason for reason in broken.reasons[1:])
 
 
 @pytest.mark.gl
@@ -319,9 +321,12 @@ def test_cli_report_pass_and_fail(tmp_path, capsys):
     folder = tmp_path / "scenes"
     folder.mkdir()
     write_scene(folder, "triangle", TRIANGLE)
-    blend = json.loads(BLEND.read_text())
-    blend["tolerance"] = {"threshold": 0, "max_bad_fraction": 0, "min_ssim": 0.99}
-    write_scene(folder, "zz_blend_exact", blend)
+    known = json.loads(KNOWN_1_LEVEL.read_text())
+    known["tolerance"] = {"threshold": 0, "max_bad_fraction": 0, "min_ssim": 0.99}
+    for texture in known.get("textures", {}).values():      # the copy lives elsewhere
+        if "image" in texture:
+            texture["image"] = str(KNOWN_1_LEVEL.parent / texture["image"])
+    write_scene(folder, "zz_lit_exact", known)
     report = tmp_path / "report"
 
     assert main(["conformance", str(folder), "--report", str(report)]) == 1
@@ -332,7 +337,7 @@ def test_cli_report_pass_and_fail(tmp_path, capsys):
     data = json.loads((report / "results.json").read_text())
     assert data["summary"]["pass"] == 1 and data["summary"]["fail"] == 1 and data["summary"]["seconds"] > 0
     verdicts = {scene["name"]: scene["verdict"] for scene in data["scenes"]}
-    assert verdicts == {"triangle": PASS, "zz_blend_exact": FAIL}
+    assert verdicts == {"triangle": PASS, "zz_lit_exact": FAIL}
     for scene in data["scenes"]:
         for image in scene["images"].values():
             assert (report / image).is_file()
@@ -340,12 +345,12 @@ def test_cli_report_pass_and_fail(tmp_path, capsys):
     suite = ElementTree.parse(report / "junit.xml").getroot()
     assert suite.tag == "testsuite" and suite.get("tests") == "2" and suite.get("failures") == "1"
     failed = [case.get("name") for case in suite.iter("testcase") if case.find("failure") is not None]
-    assert failed == ["zz_blend_exact"]
+    assert failed == ["zz_lit_exact"]
 
     page = (report / "index.html").read_text()
     assert "1 of 2 scenes FAILED" in page
-    assert page.index('id="zz_blend_exact"') < page.index('id="triangle"')  # failures first
-    assert "colour:" in page and "zz_blend_exact/where.png" in page
+    assert page.index('id="zz_lit_exact"') < page.index('id="triangle"')  # failures first
+    assert "colour:" in page and "zz_lit_exact/where.png" in page
 
     # -k keeps only the passing scene: exit 0.
     assert main(["conformance", str(folder), "-k", "tri*"]) == 0
