@@ -45,7 +45,7 @@ import numpy as np
 
 from . import clip as clip_stage
 from . import ops, setup, texture, vertex
-from .ops import _blend, _depth_pass
+from .ops import _depth_pass, blend_unorm8, unorm8
 from .scene import Scene, ordered_draws
 
 TILE = 64          # pixels per tile side (binning and the parallel unit)
@@ -150,7 +150,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     corner_args = (tri_i[:, _I_SWAP], mesh.indices, source, slot, fan_weights, visible)
     colors = _corner_values(base, *corner_args)
     tex_params = np.zeros(8, np.int64)
-    levels_flat, level_table = np.zeros(1, np.uint8), np.zeros((1, 3), np.int64)
+    levels_flat, level_table = np.zeros(4, np.uint8), np.zeros((1, 3), np.int64)
     uv = np.zeros((1, 3, 2))
     if material.texture is not None:
         tex = texture.prepare(scene.textures[material.texture])
@@ -163,7 +163,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     _draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
                 offsets, positions, color, depth,
                 ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
-                tex_params, levels_flat, level_table)
+                tex_params, levels_flat, levels_flat.view(np.uint32), level_table, numba.get_num_threads())
 
 
 def texture_tables(tex: texture.MipTexture, fixed_point: bool):
@@ -345,34 +345,61 @@ def _bin(visible, bbox, tiles_x, tiles_y):
 
 
 # ----------------------------------------------------------------------------- per pixel
-
-
-@numba.njit(cache=True, inline="always")
-def _inside(e, inclusive):
-    return e > 0 or (e == 0 and inclusive != 0)
+#
+# The per-pixel helpers below take and return scalars only.  A numba function
+# that receives an array increments and decrements its reference count (an
+# atomic operation) on every call, inlined or not; per pixel that costs more
+# than the arithmetic, and with several threads the shared counters bounce
+# between cores.  So the tile kernel itself does every array access.
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _perspective_weights(tf, px, py, out):
+def _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, px, py):
     """`interpolate.barycentric` then `interpolate.perspective_weights` at window
-    point (px, py), same operations in the same order; writes (3,) into out."""
-    e0 = (tf[_F_X + 2] - tf[_F_X + 1]) * (py - tf[_F_Y + 1]) - (tf[_F_Y + 2] - tf[_F_Y + 1]) * (px - tf[_F_X + 1])
-    e1 = (tf[_F_X + 0] - tf[_F_X + 2]) * (py - tf[_F_Y + 2]) - (tf[_F_Y + 0] - tf[_F_Y + 2]) * (px - tf[_F_X + 2])
-    e2 = (tf[_F_X + 1] - tf[_F_X + 0]) * (py - tf[_F_Y + 0]) - (tf[_F_Y + 1] - tf[_F_Y + 0]) * (px - tf[_F_X + 0])
+    point (px, py), same operations in the same order: (w0, w1, w2) float64."""
+    e0 = (x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)
+    e1 = (x0 - x2) * (py - y2) - (y0 - y2) * (px - x2)
+    e2 = (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)
     total = e0 + e1 + e2
-    q0 = e0 / total * tf[_F_W + 0]
-    q1 = e1 / total * tf[_F_W + 1]
-    q2 = e2 / total * tf[_F_W + 2]
+    q0 = e0 / total * iw0
+    q1 = e1 / total * iw1
+    q2 = e2 / total * iw2
     qs = q0 + q1 + q2
-    out[0] = q0 / qs
-    out[1] = q1 / qs
-    out[2] = q2 / qs
+    return q0 / qs, q1 / qs, q2 / qs
 
 
 @numba.njit(cache=True, inline="always")
-def _interp(w, values, c):
-    """``einsum("fi,fik->fk")`` for one fragment and channel c of (3, K) values."""
-    return w[0] * values[0, c] + w[1] * values[1, c] + w[2] * values[2, c]
+def _inside3(sx, sy, a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1, a2, b2, ex2, ey2, k2):
+    """Whether sample (sx, sy) (1/256 px) is inside all three integer edge
+    functions of `softras.rasterize` (k = 1 for an exclusive edge: e > 0,
+    k = 0 for an inclusive one: e >= 0)."""
+    return ((a0 * (sx - ex0) + b0 * (sy - ey0) - k0) | (a1 * (sx - ex1) + b1 * (sy - ey1) - k1)
+            | (a2 * (sx - ex2) + b2 * (sy - ey2) - k2)) >= 0
+
+
+@numba.njit(cache=True, inline="always")
+def _edge_range(a, b, ex, ey, x_lo, x_hi, y_lo, y_hi):
+    """(min, max) of the integer edge function a (x - ex) + b (y - ey) over a rectangle's corners."""
+    e00 = a * (x_lo - ex) + b * (y_lo - ey)
+    e10 = a * (x_hi - ex) + b * (y_lo - ey)
+    e01 = a * (x_lo - ex) + b * (y_hi - ey)
+    e11 = a * (x_hi - ex) + b * (y_hi - ey)
+    return min(min(e00, e10), min(e01, e11)), max(max(e00, e10), max(e01, e11))
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2,
+                 textured, tr, tg, tb, ta):
+    """fragment.shade_unlit (premultiplied perspective colour x texel) as the
+    bytes llvmpipe converts the fragment colour to (`ops.unorm8`)."""
+    alpha = w0 * ca0 + w1 * ca1 + w2 * ca2
+    r = (w0 * cr0 + w1 * cr1 + w2 * cr2) * alpha
+    g = (w0 * cg0 + w1 * cg1 + w2 * cg2) * alpha
+    b = (w0 * cb0 + w1 * cb1 + w2 * cb2) * alpha
+    a = alpha
+    if textured:
+        r, g, b, a = r * tr, g * tg, b * tb, a * ta
+    return unorm8(r), unorm8(g), unorm8(b), unorm8(a)
 
 
 @numba.njit(cache=True, inline="always")
@@ -383,6 +410,12 @@ def _wrap(i, size, mode):
         return min(max(i, 0), size - 1)
     m = i % (2 * size)
     return m if m < size else 2 * size - 1 - m
+
+
+@numba.njit(cache=True, inline="always")
+def _nearest(s, size, mode):
+    """`texture.nearest_addresses`: the texel index of coordinate s."""
+    return _wrap(np.int64(np.floor(np.float32(s) * np.float32(size))), size, mode)
 
 
 @numba.njit(cache=True, inline="always")
@@ -405,47 +438,51 @@ def _linear_fixed(s, size, mode):
     return _wrap(i0, size, mode), _wrap(i0 + 1, size, mode), weight
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _linear_float(s, size, mode):
+    """`texture.linear_addresses` with float weights: (i0, i1, weight)."""
+    u = s * size - 0.5
+    fu = np.floor(u)
+    return _wrap(np.int64(fu), size, mode), _wrap(np.int64(fu) + 1, size, mode), u - fu
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _bilinear_float(a, b, t00, t10, t01, t11):
+    return (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11
+
+
+# An RGBA8 texel (uint32, R in the low byte) "spread" into four 16-bit lanes of
+# a uint64 (R, B, G, A at bits 0, 16, 32, 48), so one 64-bit multiply-add
+# filters all four channels: see `_lerp_lanes`.
+_LANES = np.uint64(0x00FF00FF00FF00FF)
+_HALF_LANES = np.uint64(0x0080008000800080)
+
+
+@numba.njit(cache=True, inline="always")
+def _spread(texel):
+    x = np.uint64(texel)
+    return (x | (x << np.uint64(24))) & _LANES
+
+
+@numba.njit(cache=True, inline="always")
+def _lane(x, c):
+    """Channel c (0 R, 1 G, 2 B, 3 A) of spread lanes, 0..255."""
+    shift = 0 if c == 0 else (32 if c == 1 else (16 if c == 2 else 48))
+    return np.int64((x >> np.uint64(shift)) & np.uint64(255))
+
+
+@numba.njit(cache=True, inline="always")
+def _lerp_lanes(w, a, b):
+    """``_lerp8(w, a, b) = a + ((w (b - a) + 128) >> 8)`` on all four lanes at
+    once, for 0 <= w <= 256: the same integer as ``((256 - w) a + w b + 128) >> 8``,
+    which stays below 2^16 in every lane (no carry between lanes)."""
+    return ((np.uint64(256 - w) * a + np.uint64(w) * b + _HALF_LANES) >> np.uint64(8)) & _LANES
+
+
 @numba.njit(cache=True, inline="always")
 def _lerp8(w, a, b):
+    """llvmpipe's 8.8 fixed-point lerp of bytes a, b with weight w in 0..256."""
     return a + ((w * (b - a) + 128) >> 8)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _filter_level(texels, table, level, s, t, image_filter, wrap_s, wrap_t, fixed8, out):
-    """`texture.filter_level` (gl) for one fragment: writes (4,) on the 0..255 scale."""
-    base, w, h = table[level, 0], table[level, 1], table[level, 2]
-    if image_filter == 0:
-        i = _wrap(np.int64(np.floor(np.float32(s) * np.float32(w))), w, wrap_s)
-        j = _wrap(np.int64(np.floor(np.float32(t) * np.float32(h))), h, wrap_t)
-        for c in range(4):
-            out[c] = texels[base + (j * w + i) * 4 + c]
-        return
-    if fixed8:
-        i0, i1, a = _linear_fixed(s, w, wrap_s)
-        j0, j1, b = _linear_fixed(t, h, wrap_t)
-        for c in range(4):
-            t00 = np.int64(texels[base + (j0 * w + i0) * 4 + c])
-            t10 = np.int64(texels[base + (j0 * w + i1) * 4 + c])
-            t01 = np.int64(texels[base + (j1 * w + i0) * 4 + c])
-            t11 = np.int64(texels[base + (j1 * w + i1) * 4 + c])
-            out[c] = _lerp8(b, _lerp8(a, t00, t10), _lerp8(a, t01, t11))
-        return
-    u = s * w - 0.5
-    v = t * h - 0.5
-    fu = np.floor(u)
-    fv = np.floor(v)
-    a = u - fu
-    b = v - fv
-    i0 = _wrap(np.int64(fu), w, wrap_s)
-    i1 = _wrap(np.int64(fu) + 1, w, wrap_s)
-    j0 = _wrap(np.int64(fv), h, wrap_t)
-    j1 = _wrap(np.int64(fv) + 1, h, wrap_t)
-    for c in range(4):
-        t00 = np.float64(texels[base + (j0 * w + i0) * 4 + c])
-        t10 = np.float64(texels[base + (j0 * w + i1) * 4 + c])
-        t01 = np.float64(texels[base + (j1 * w + i0) * 4 + c])
-        t11 = np.float64(texels[base + (j1 * w + i1) * 4 + c])
-        out[c] = (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11
 
 
 @numba.njit(cache=True, inline="always")
@@ -456,22 +493,21 @@ def _nan_max(x, y):
     return x if x >= y else y
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _sample_texture(params, texels, table, s, t, ddx_s, ddx_t, ddy_s, ddy_t, c0, c1):
-    """`texture.sample` (gl precision) for one fragment: writes (4,) float64 into c0."""
-    w32 = np.float32(table[0, 1])
-    h32 = np.float32(table[0, 2])
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, ddy_s, ddy_t):
+    """The level choice of `texture.sample` (gl precision) for one quad's
+    derivatives: (level0, level1, frac, image filter, whether to blend two levels)."""
+    w32 = np.float32(width0)
+    h32 = np.float32(height0)
     du0 = np.float32(ddx_s) * w32
     du1 = np.float32(ddx_t) * h32
     dv0 = np.float32(ddy_s) * w32
     dv1 = np.float32(ddy_t) * h32
     rho2 = _nan_max(du0 * du0 + du1 * du1, dv0 * dv0 + dv1 * dv1)      # float32
     magnified = not (rho2 > 1)
-    last = params[_T_LEVELS] - 1
     level0 = 0
     level1 = 0
     frac = 0.0
-    mip = params[_T_MIP]
     if mip == 1:
         e = math.frexp(np.float64(rho2))[1]             # exponent of the float32 value
         level = np.int64(e) >> 1 if rho2 > 0 else 0
@@ -492,46 +528,11 @@ def _sample_texture(params, texels, table, s, t, ddx_s, ddx_t, ddy_s, ddy_t, c0,
         level1 = min(max(ipart + 1, 0), last)
     if magnified:
         level0 = 0
-        image_filter = params[_T_MAG]
+        image_filter = mag_filter
     else:
-        image_filter = params[_T_MIN]
-    fixed8 = params[_T_FIXED] != 0
-    _filter_level(texels, table, level0, s, t, image_filter, params[_T_WS], params[_T_WT], fixed8, c0)
-    if not magnified and level1 != level0 and frac > 0:
-        _filter_level(texels, table, level1, s, t, image_filter, params[_T_WS], params[_T_WT], fixed8, c1)
-        if fixed8:
-            w8 = np.int64(np.floor(frac * 256))
-            for c in range(4):
-                c0[c] = _lerp8(w8, np.int64(c0[c]), np.int64(c1[c]))
-        else:
-            for c in range(4):
-                c0[c] = c0[c] + frac * (c1[c] - c0[c])
-    for c in range(4):
-        c0[c] = c0[c] / 255.0
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _texel(tf, uv_t, px, py, w, tex_params, texels, table, scratch):
-    """The texture sample of pixel (px, py) with perspective weights w (3,) at its
-    centre: (s, t) there, per-quad derivatives (`interpolate.quad_derivatives`:
-    TL, TR, BL in float32) and `_sample_texture`; returns scratch[:4]."""
-    s = _interp(w, uv_t, 0)
-    t = _interp(w, uv_t, 1)
-    qx = np.float64(px & ~1) + 0.5
-    qy = np.float64(py & ~1) + 0.5
-    q = np.empty(3)
-    _perspective_weights(tf, qx, qy, q)
-    tl_s = np.float32(_interp(q, uv_t, 0))
-    tl_t = np.float32(_interp(q, uv_t, 1))
-    _perspective_weights(tf, qx + 1, qy, q)
-    ddx_s = np.float64(np.float32(_interp(q, uv_t, 0)) - tl_s)
-    ddx_t = np.float64(np.float32(_interp(q, uv_t, 1)) - tl_t)
-    _perspective_weights(tf, qx, qy + 1, q)
-    ddy_s = np.float64(np.float32(_interp(q, uv_t, 0)) - tl_s)
-    ddy_t = np.float64(np.float32(_interp(q, uv_t, 1)) - tl_t)
-    texel = scratch[:4]
-    _sample_texture(tex_params, texels, table, s, t, ddx_s, ddx_t, ddy_s, ddy_t, texel, scratch[4:])
-    return texel
+        image_filter = min_filter
+    two = (not magnified) and level1 != level0 and frac > 0
+    return level0, level1, frac, image_filter, two
 
 
 @numba.njit(cache=True, parallel=True)
@@ -551,141 +552,259 @@ def clear(color, depth, clear_bytes):
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
                 offsets, positions, color, depth, depth_func, depth_write, blend,
-                tex_params, texels, table):
+                tex_params, texels, texels32, table, n_threads):
     """Rasterize, shade and apply every binned triangle, tiles in parallel.
 
     color : (H, W, S, 4) uint8, depth : (H, W, S) float64, updated in place.
-    The per-pixel arithmetic is `softras.pipeline`'s, operation for operation.
+    texels / texels32 : a texture's levels as bytes and as RGBA8 words.
+    Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
+    so a scene covering only part of the picture still keeps every thread busy).
     """
     n_tiles = bin_start.shape[0] - 1
-    n_samples = offsets.shape[0]
-    full_mask = np.uint32((1 << n_samples) - 1)
+    for r in numba.prange(n_threads):
+        src = np.empty(4, np.int64)          # fragment bytes (ops.unorm8)
+        dst = np.empty(4, np.int64)          # stored bytes
+        out = np.empty(4, np.int64)          # blended bytes
+        passed = np.zeros(4, np.int64)       # per pixel of a quad: samples that passed the depth test
+        texel = np.empty((2, 4))             # float-weight filtering: the two levels' RGBA
+        for tile in range(r, n_tiles, n_threads):
+            _draw_tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                       offsets, positions, color, depth, depth_func, depth_write, blend,
+                       tex_params, texels, texels32, table, src, dst, out, passed, texel)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _draw_tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+               offsets, positions, color, depth, depth_func, depth_write, blend,
+               tex_params, texels, texels32, table, src, dst, out, passed, texel):
+    """`_tile` compiled for the sample count (1 or 4, `FAST_SAMPLES`) and for
+    textured or not as constants, so that the compiler unrolls the per-sample
+    and per-quad loops and drops the texture code from untextured draws."""
+    textured = tex_params[_T_ON] != 0
+    if offsets.shape[0] == 1:
+        if textured:
+            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                  offsets, positions, color, depth, depth_func, depth_write, blend,
+                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 1, True)
+        else:
+            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                  offsets, positions, color, depth, depth_func, depth_write, blend,
+                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 1, False)
+    else:
+        if textured:
+            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                  offsets, positions, color, depth, depth_func, depth_write, blend,
+                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 4, True)
+        else:
+            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                  offsets, positions, color, depth, depth_func, depth_write, blend,
+                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 4, False)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+          offsets, positions, color, depth, depth_func, depth_write, blend,
+          tex_params, texels, texels32, table, src, dst, out, passed, texel, n_samples, textured):
+    """One 64x64 tile: its triangles in draw order; per triangle the 8x8 blocks
+    of its bounding box inside the tile with the exact early-out / early-in
+    corner test of `softras.rasterize`; then per pixel (untextured) or per 2x2
+    quad (textured: blocks start at even coordinates, the quad's top-left,
+    top-right and bottom-left evaluations give the derivatives and are also
+    those pixels' own perspective weights, and the level of detail is the
+    quad's): coverage, depth test, colour, blend and write.  The per-pixel
+    arithmetic is `softras.pipeline`'s, operation for operation."""
+    full_mask = (1 << n_samples) - 1
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
     write_z = depth_write and depth_func != 0
-    textured = tex_params[_T_ON] != 0
-    for tile in numba.prange(n_tiles):
-        tx0 = (tile % tiles_x) * TILE
-        ty0 = (tile // tiles_x) * TILE
-        tx1 = min(tx0 + TILE, width) - 1
-        ty1 = min(ty0 + TILE, height) - 1
-        w = np.empty(3)
-        rgba = np.empty(4)
-        src = np.empty(4)
-        dst = np.empty(4)
-        out = np.empty(4)
-        scratch = np.empty(8)
-        for j in range(bin_start[tile], bin_start[tile + 1]):
-            t = bin_tri[j]
-            tf = tri_f[t]
-            ti = tri_i[t]
-            colors_t = colors[t]
-            uv_t = uv[t] if textured else uv[0]
-            dx0, dy0 = tf[_F_X + 2] - tf[_F_X + 1], tf[_F_Y + 2] - tf[_F_Y + 1]
-            dx1, dy1 = tf[_F_X + 0] - tf[_F_X + 2], tf[_F_Y + 0] - tf[_F_Y + 2]
-            dx2, dy2 = tf[_F_X + 1] - tf[_F_X + 0], tf[_F_Y + 1] - tf[_F_Y + 0]
-            x_start = max(bbox[t, 0], tx0)
-            x_end = min(bbox[t, 1], tx1)
-            y_start = max(bbox[t, 2], ty0)
-            y_end = min(bbox[t, 3], ty1)
-            for by in range(y_start, y_end + 1, BLOCK):
-                by1 = min(by + BLOCK - 1, y_end)
-                for bx in range(x_start, x_end + 1, BLOCK):
-                    bx1 = min(bx + BLOCK - 1, x_end)
-                    x_lo = bx * 256 + min_ox
-                    x_hi = bx1 * 256 + max_ox
-                    y_lo = by * 256 + min_oy
-                    y_hi = by1 * 256 + max_oy
-                    outside = False
-                    all_in = True
-                    for i in range(3):
-                        a = ti[_I_A + i]
-                        b = ti[_I_B + i]
-                        ex = ti[_I_X0 + i]
-                        ey = ti[_I_Y0 + i]
-                        e00 = a * (x_lo - ex) + b * (y_lo - ey)
-                        e10 = a * (x_hi - ex) + b * (y_lo - ey)
-                        e01 = a * (x_lo - ex) + b * (y_hi - ey)
-                        e11 = a * (x_hi - ex) + b * (y_hi - ey)
-                        e_max = max(max(e00, e10), max(e01, e11))
-                        e_min = min(min(e00, e10), min(e01, e11))
-                        if not _inside(e_max, ti[_I_INC + i]):
-                            outside = True
-                            break
-                        if not _inside(e_min, ti[_I_INC + i]):
-                            all_in = False
-                    if outside:
-                        continue
-                    for py in range(by, by1 + 1):
-                        # The y terms of the barycentric edge functions at this row's
-                        # centres (`interpolate.barycentric`: the same products).
-                        cy = py + 0.5
-                        r0 = dx0 * (cy - tf[_F_Y + 1])
-                        r1 = dx1 * (cy - tf[_F_Y + 2])
-                        r2 = dx2 * (cy - tf[_F_Y + 0])
-                        for px in range(bx, bx1 + 1):
-                            if all_in:
+    step = 2 if textured else 1             # quad side in pixels
+    wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
+    fixed8 = tex_params[_T_FIXED] != 0
+    tx0 = (tile % tiles_x) * TILE
+    ty0 = (tile // tiles_x) * TILE
+    tx1 = min(tx0 + TILE, width) - 1
+    ty1 = min(ty0 + TILE, height) - 1
+    tr = tg = tb = ta = 1.0
+    for j in range(bin_start[tile], bin_start[tile + 1]):
+        t = bin_tri[j]
+        x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
+        y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
+        iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
+        z0, dzdx, dzdy = tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY]
+        a0, b0, ex0, ey0, k0 = (tri_i[t, _I_A], tri_i[t, _I_B], tri_i[t, _I_X0], tri_i[t, _I_Y0],
+                                1 - tri_i[t, _I_INC])
+        a1, b1, ex1, ey1, k1 = (tri_i[t, _I_A + 1], tri_i[t, _I_B + 1], tri_i[t, _I_X0 + 1],
+                                tri_i[t, _I_Y0 + 1], 1 - tri_i[t, _I_INC + 1])
+        a2, b2, ex2, ey2, k2 = (tri_i[t, _I_A + 2], tri_i[t, _I_B + 2], tri_i[t, _I_X0 + 2],
+                                tri_i[t, _I_Y0 + 2], 1 - tri_i[t, _I_INC + 2])
+        cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
+        cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
+        cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
+        ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
+        u0 = u1 = u2 = v0 = v1 = v2 = 0.0
+        if textured:
+            u0, u1, u2 = uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]
+            v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
+        x_start = max(bbox[t, 0], tx0)
+        x_end = min(bbox[t, 1], tx1)
+        y_start = max(bbox[t, 2], ty0)
+        y_end = min(bbox[t, 3], ty1)
+        for block_y in range(y_start & -step, y_end + 1, BLOCK):
+            by = max(block_y, y_start)
+            by1 = min(block_y + BLOCK - 1, y_end)
+            for block_x in range(x_start & -step, x_end + 1, BLOCK):
+                bx = max(block_x, x_start)
+                bx1 = min(block_x + BLOCK - 1, x_end)
+                # The edge functions at the block's extreme sample positions.
+                x_lo = bx * 256 + min_ox
+                x_hi = bx1 * 256 + max_ox
+                y_lo = by * 256 + min_oy
+                y_hi = by1 * 256 + max_oy
+                e_min0, e_max0 = _edge_range(a0, b0, ex0, ey0, x_lo, x_hi, y_lo, y_hi)
+                e_min1, e_max1 = _edge_range(a1, b1, ex1, ey1, x_lo, x_hi, y_lo, y_hi)
+                e_min2, e_max2 = _edge_range(a2, b2, ex2, ey2, x_lo, x_hi, y_lo, y_hi)
+                if ((e_max0 - k0) | (e_max1 - k1) | (e_max2 - k2)) < 0:
+                    continue                            # the block is outside an edge
+                all_in = ((e_min0 - k0) | (e_min1 - k1) | (e_min2 - k2)) >= 0
+                for qy in range(by & -step, by1 + 1, step):
+                    for qx in range(bx & -step, bx1 + 1, step):
+                        # Coverage, depth test and depth write of the quad's pixels.
+                        any_passed = 0
+                        for k in range(step * step):
+                            px = qx + (k & 1)
+                            py = qy + (k >> 1)
+                            p = 0
+                            if bx <= px <= bx1 and by <= py <= by1:
                                 mask = full_mask
-                            else:
-                                mask = np.uint32(0)
+                                if not all_in:
+                                    mask = 0
+                                    for s in range(n_samples):
+                                        if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
+                                                    a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1,
+                                                    a2, b2, ex2, ey2, k2):
+                                            mask |= 1 << s
                                 for s in range(n_samples):
-                                    sx = px * 256 + offsets[s, 0]
-                                    sy = py * 256 + offsets[s, 1]
-                                    if (_inside(ti[_I_A] * (sx - ti[_I_X0]) + ti[_I_B] * (sy - ti[_I_Y0]),
-                                                ti[_I_INC])
-                                            and _inside(ti[_I_A + 1] * (sx - ti[_I_X0 + 1])
-                                                        + ti[_I_B + 1] * (sy - ti[_I_Y0 + 1]), ti[_I_INC + 1])
-                                            and _inside(ti[_I_A + 2] * (sx - ti[_I_X0 + 2])
-                                                        + ti[_I_B + 2] * (sy - ti[_I_Y0 + 2]), ti[_I_INC + 2])):
-                                        mask |= np.uint32(1) << np.uint32(s)
-                            if mask == 0:
+                                    if (mask >> s) & 1:
+                                        # Depth from the plane equation, rounded to 24 bits.
+                                        zx = (px + positions[s, 0]) - x0
+                                        zy = (py + positions[s, 1]) - y0
+                                        z = z0 + dzdx * zx + dzdy * zy
+                                        z = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
+                                        if _depth_pass(depth_func, z, depth[py, px, s]):
+                                            if write_z:
+                                                depth[py, px, s] = z
+                                            p |= 1 << s
+                            passed[k] = p
+                            any_passed |= p
+                        if any_passed == 0:
+                            continue
+                        cx = qx + 0.5
+                        cy = qy + 0.5
+                        if textured:
+                            # Derivatives from the quad's top-left, top-right and
+                            # bottom-left centres (`interpolate.quad_derivatives`).
+                            wa0, wa1, wa2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx, cy)
+                            wb0, wb1, wb2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx + 1, cy)
+                            wc0, wc1, wc2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx, cy + 1)
+                            s_tl = wa0 * u0 + wa1 * u1 + wa2 * u2
+                            t_tl = wa0 * v0 + wa1 * v1 + wa2 * v2
+                            s_tr = wb0 * u0 + wb1 * u1 + wb2 * u2
+                            t_tr = wb0 * v0 + wb1 * v1 + wb2 * v2
+                            s_bl = wc0 * u0 + wc1 * u1 + wc2 * u2
+                            t_bl = wc0 * v0 + wc1 * v1 + wc2 * v2
+                            ddx_s = np.float64(np.float32(s_tr) - np.float32(s_tl))
+                            ddx_t = np.float64(np.float32(t_tr) - np.float32(t_tl))
+                            ddy_s = np.float64(np.float32(s_bl) - np.float32(s_tl))
+                            ddy_t = np.float64(np.float32(t_bl) - np.float32(t_tl))
+                            level0, level1, frac, image_filter, two = _quad_lod(
+                                table[0, 1], table[0, 2], tex_params[_T_MIP], tex_params[_T_LEVELS] - 1,
+                                tex_params[_T_MAG], tex_params[_T_MIN], ddx_s, ddx_t, ddy_s, ddy_t)
+                            n_levels = 2 if two else 1
+                            lanes = fixed8 or (image_filter == 0 and not two)
+                            w8 = np.int64(np.floor(frac * 256))
+                        for k in range(step * step):
+                            p = passed[k]
+                            if p == 0:
                                 continue
-                            shaded = False
-                            for s in range(n_samples):
-                                if not (mask >> s) & 1:
-                                    continue
-                                # Depth from the plane equation, rounded to 24 bits.
-                                zx = (px + positions[s, 0]) - tf[_F_X]
-                                zy = (py + positions[s, 1]) - tf[_F_Y]
-                                z = tf[_F_Z] + tf[_F_DZDX] * zx + tf[_F_DZDY] * zy
-                                z = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
-                                if not _depth_pass(depth_func, z, depth[py, px, s]):
-                                    continue
-                                if write_z:
-                                    depth[py, px, s] = z
-                                if not shaded:
-                                    # Perspective-correct colour at the pixel centre
-                                    # (`interpolate.barycentric`, `perspective_weights`).
-                                    cx = px + 0.5
-                                    e0 = r0 - dy0 * (cx - tf[_F_X + 1])
-                                    e1 = r1 - dy1 * (cx - tf[_F_X + 2])
-                                    e2 = r2 - dy2 * (cx - tf[_F_X + 0])
-                                    total = e0 + e1 + e2
-                                    q0 = e0 / total * tf[_F_W + 0]
-                                    q1 = e1 / total * tf[_F_W + 1]
-                                    q2 = e2 / total * tf[_F_W + 2]
-                                    qs = q0 + q1 + q2
-                                    w[0] = q0 / qs
-                                    w[1] = q1 / qs
-                                    w[2] = q2 / qs
-                                    # fragment.shade_unlit: premultiplied colour x texel.
-                                    alpha = _interp(w, colors_t, 3)
-                                    for c in range(3):
-                                        rgba[c] = _interp(w, colors_t, c) * alpha
-                                    rgba[3] = alpha
-                                    if textured:
-                                        texel = _texel(tf, uv_t, px, py, w, tex_params, texels, table, scratch)
-                                        for c in range(4):
-                                            rgba[c] = rgba[c] * texel[c]
-                                    for c in range(4):
-                                        src[c] = min(max(rgba[c], 0.0), 1.0)
-                                    shaded = True
-                                if blend == 0:
-                                    for c in range(4):
-                                        out[c] = src[c]
+                            px = qx + (k & 1)
+                            py = qy + (k >> 1)
+                            if not textured:
+                                w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx, cy)
+                            else:
+                                if k == 0:
+                                    w0, w1, w2, s_px, t_px = wa0, wa1, wa2, s_tl, t_tl
+                                elif k == 1:
+                                    w0, w1, w2, s_px, t_px = wb0, wb1, wb2, s_tr, t_tr
+                                elif k == 2:
+                                    w0, w1, w2, s_px, t_px = wc0, wc1, wc2, s_bl, t_bl
                                 else:
+                                    w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2,
+                                                             cx + 1, cy + 1)
+                                    s_px = w0 * u0 + w1 * u1 + w2 * u2
+                                    t_px = w0 * v0 + w1 * v1 + w2 * v2
+                                # `texture.sample` (gl) at (s_px, t_px) on the quad's level(s).
+                                lanes_texel = np.uint64(0)
+                                x = np.uint64(0)
+                                for lv in range(n_levels):
+                                    level = level0 if lv == 0 else level1
+                                    base, lw, lh = table[level, 0], table[level, 1], table[level, 2]
+                                    if image_filter == 0:
+                                        i = _nearest(s_px, lw, wrap_s)
+                                        jj = _nearest(t_px, lh, wrap_t)
+                                        if lanes:
+                                            x = _spread(texels32[(base >> 2) + jj * lw + i])
+                                        else:
+                                            for c in range(4):
+                                                texel[lv, c] = np.float64(texels[base + (jj * lw + i) * 4 + c])
+                                    elif lanes:
+                                        i0, i1, fa = _linear_fixed(s_px, lw, wrap_s)
+                                        j0, j1, fb = _linear_fixed(t_px, lh, wrap_t)
+                                        row0 = (base >> 2) + j0 * lw
+                                        row1 = (base >> 2) + j1 * lw
+                                        x = _lerp_lanes(fb, _lerp_lanes(fa, _spread(texels32[row0 + i0]),
+                                                                        _spread(texels32[row0 + i1])),
+                                                        _lerp_lanes(fa, _spread(texels32[row1 + i0]),
+                                                                    _spread(texels32[row1 + i1])))
+                                    else:
+                                        i0, i1, fa = _linear_float(s_px, lw, wrap_s)
+                                        j0, j1, fb = _linear_float(t_px, lh, wrap_t)
+                                        for c in range(4):
+                                            texel[lv, c] = _bilinear_float(
+                                                fa, fb, np.float64(texels[base + (j0 * lw + i0) * 4 + c]),
+                                                np.float64(texels[base + (j0 * lw + i1) * 4 + c]),
+                                                np.float64(texels[base + (j1 * lw + i0) * 4 + c]),
+                                                np.float64(texels[base + (j1 * lw + i1) * 4 + c]))
+                                    if lanes:
+                                        lanes_texel = x if lv == 0 else _lerp_lanes(w8, lanes_texel, x)
+                                if lanes:
+                                    tr = _lane(lanes_texel, 0) / 255.0
+                                    tg = _lane(lanes_texel, 1) / 255.0
+                                    tb = _lane(lanes_texel, 2) / 255.0
+                                    ta = _lane(lanes_texel, 3) / 255.0
+                                else:
+                                    if two:
+                                        for c in range(4):
+                                            texel[0, c] = texel[0, c] + frac * (texel[1, c] - texel[0, c])
+                                    tr = texel[0, 0] / 255.0
+                                    tg = texel[0, 1] / 255.0
+                                    tb = texel[0, 2] / 255.0
+                                    ta = texel[0, 3] / 255.0
+                            # The fragment colour as llvmpipe's bytes, blended
+                            # in 8-bit integers (`ops.apply_fragments`).
+                            r8, g8, b8, a8 = _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
+                                                          ca0, ca1, ca2, textured, tr, tg, tb, ta)
+                            for s in range(n_samples):
+                                if not (p >> s) & 1:
+                                    continue
+                                if blend == 0:
+                                    color[py, px, s, 0] = np.uint8(r8)
+                                    color[py, px, s, 1] = np.uint8(g8)
+                                    color[py, px, s, 2] = np.uint8(b8)
+                                    color[py, px, s, 3] = np.uint8(a8)
+                                else:
+                                    src[0], src[1], src[2], src[3] = r8, g8, b8, a8
                                     for c in range(4):
-                                        dst[c] = color[py, px, s, c] / 255.0
-                                    _blend(blend, src, dst, out)
-                                for c in range(4):
-                                    color[py, px, s, c] = np.uint8(np.rint(min(max(out[c], 0.0), 1.0) * 255.0))
+                                        dst[c] = color[py, px, s, c]
+                                    blend_unorm8(blend, src, dst, out)
+                                    for c in range(4):
+                                        color[py, px, s, c] = np.uint8(out[c])
