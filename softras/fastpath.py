@@ -39,6 +39,7 @@ per-draw constants outside of the per-pixel work).
 from __future__ import annotations
 
 import math
+import threading
 
 import numba
 import numpy as np
@@ -110,7 +111,8 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     byte k where the general pipeline stores the float k/255.
     """
     offsets, _ = setup.sample_offsets(positions, "gl")
-    color, depth = new_framebuffer(scene.width, scene.height, len(positions), scene.background)
+    depth = _scratch.take("depth", (scene.height, scene.width, len(positions)), np.float64)
+    color, depth = new_framebuffer(scene.width, scene.height, len(positions), scene.background, depth)
     offsets = np.ascontiguousarray(offsets, np.int64)
     positions = np.ascontiguousarray(positions, np.float64)
     for draw in ordered_draws(scene):
@@ -118,14 +120,17 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     return color
 
 
-def new_framebuffer(width: int, height: int, samples: int, background) -> tuple[np.ndarray, np.ndarray]:
+def new_framebuffer(width: int, height: int, samples: int, background,
+                    depth: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(color (H, W, S, 4) uint8, depth (H, W, S) float64) cleared as `ops.new_framebuffer`
-    with quantize: colour bytes round(clamp(premultiplied background) * 255), depth 1."""
+    with quantize: colour bytes round(clamp(premultiplied background) * 255), depth 1
+    (into ``depth`` when given)."""
     bg = np.asarray(background, np.float64)
     premultiplied = np.concatenate([bg[:3] * bg[3], bg[3:4]])
     clear_bytes = np.rint(np.clip(premultiplied, 0.0, 1.0) * 255.0).astype(np.uint8)
     color = np.empty((height, width, samples, 4), np.uint8)
-    depth = np.empty((height, width, samples))
+    if depth is None:
+        depth = np.empty((height, width, samples))
     clear(color, depth, clear_bytes)
     return color, depth
 
@@ -139,8 +144,12 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     source, slot, fan_clip, fan_weights = clip_stage.triangle_list_gl(clip_pos, mesh.indices)
     if len(source) == 0:
         return
-    tri_f, tri_i, bbox = _setup(clip_pos, mesh.indices, source, slot, fan_clip, fan_weights,
-                                width, height, CULL_CODES[draw.cull], offsets, SUBPIXEL_ONE)
+    n = len(source)
+    tri_f = _scratch.take("tri_f", (n, _NF), np.float64)
+    tri_i = _scratch.take("tri_i", (n, _NI), np.int64)
+    bbox = _scratch.take("bbox", (n, 4), np.int64)
+    _setup(clip_pos, mesh.indices, source, slot, fan_clip, fan_weights,
+           width, height, CULL_CODES[draw.cull], offsets, SUBPIXEL_ONE, tri_f, tri_i, bbox)
     visible = np.flatnonzero(tri_i[:, _I_VIS])
     if len(visible) == 0:
         return
@@ -148,7 +157,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
     base = np.ascontiguousarray(vertex_colors * material.color)             # straight, per vertex
     corner_args = (tri_i[:, _I_SWAP], mesh.indices, source, slot, fan_weights, visible)
-    colors = _corner_values(base, *corner_args)
+    colors = _corner_values(base, *corner_args, _scratch.take("colors", (n, 3, 4), np.float64))
     tex_params = np.zeros(8, np.int64)
     levels_flat, level_table = np.zeros(4, np.uint8), np.zeros((1, 3), np.int64)
     uv = np.zeros((1, 3, 2))
@@ -156,7 +165,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
         tex = texture.prepare(scene.textures[material.texture])
         tex_params, levels_flat, level_table = texture_tables(tex, texture_fixed_point)
         uvs = np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64))
-        uv = _corner_values(uvs, *corner_args)
+        uv = _corner_values(uvs, *corner_args, _scratch.take("uv", (n, 3, 2), np.float64))
     tiles_x = (width + TILE - 1) // TILE
     tiles_y = (height + TILE - 1) // TILE
     bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
@@ -189,24 +198,49 @@ def texture_tables(tex: texture.MipTexture, fixed_point: bool):
 SUBPIXEL_ONE = 256
 
 
+class _Scratch(threading.local):
+    """Per-thread arrays reused from one render to the next (the set-up tables,
+    corner attributes and depth buffer).  A fresh multi-megabyte array costs a
+    page fault per 4 KiB page when first written, on this machine about as
+    much as setting up the triangles that fill it; a reused one is already
+    mapped.  Buffers over MAX_BYTES are not kept."""
+
+    MAX_BYTES = 64 << 20
+
+    def __init__(self):
+        self.buffers = {}
+
+    def take(self, name: str, shape: tuple, dtype) -> np.ndarray:
+        """An uninitialised C-contiguous array of this shape and dtype."""
+        dtype = np.dtype(dtype)
+        size = math.prod(shape)
+        buffer = self.buffers.get(name)
+        if buffer is None or buffer.dtype != dtype or buffer.size < size:
+            buffer = np.empty(max(size, 1), dtype)
+            if buffer.nbytes <= self.MAX_BYTES:
+                self.buffers[name] = buffer
+        return buffer[:size].reshape(shape)
+
+
+_scratch = _Scratch()
+
+
 # ----------------------------------------------------------------------------- setup
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit):
+def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
+           tri_f, tri_i, bbox):
     """`softras.setup.setup_triangles` (gl precision) and the depth plane of
     `softras.interpolate.depth_at_samples`, for the clipped triangles listed
     by `softras.clip.triangle_list_gl` (source, slot, fan_clip, fan_weights).
 
-    Returns tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts at the top
+    Fills tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts at the top
     of the module) and bbox (T, 4) int64 (x0, x1, y0, y1 inclusive); the
     triangles that the pipeline drops (zero area, culled, empty box) have
-    tri_i[:, _I_VIS] == 0.
+    tri_i[:, _I_VIS] == 0 and their other entries undefined.
     """
     n = source.shape[0]
-    tri_f = np.zeros((n, _NF))
-    tri_i = np.zeros((n, _NI), np.int64)
-    bbox = np.zeros((n, 4), np.int64)
     sx = np.array([width / 2.0, height / 2.0, 0.5])
     sx32 = sx.astype(np.float32)
     wx = np.empty(3)
@@ -220,6 +254,8 @@ def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
     for t in range(n):
+        tri_i[t, _I_VIS] = 0
+        tri_i[t, _I_SWAP] = 0
         for k in range(3):
             f = slot[t]
             if f < 0:
@@ -289,17 +325,16 @@ def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height
         det = dx1 * dy2 - dx2 * dy1
         tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
         tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
-    return tri_f, tri_i, bbox
 
 
 @numba.njit(cache=True)
-def _corner_values(values, swapped, indices, source, slot, fan_weights, visible):
+def _corner_values(values, swapped, indices, source, slot, fan_weights, visible, out):
     """Attributes at the set-up corners: (T, 3, K) float64 for the visible
     triangles, as the pipeline's ``einsum("tkj,tjc->tkc", w, values[vertices])``
     with the clip weights (identity for a passed-through triangle) in set-up
-    corner order and the same sum order."""
+    corner order and the same sum order.  Fills out (T, 3, K) (rows of the
+    invisible triangles are left as they were) and returns it."""
     n_k = values.shape[1]
-    out = np.zeros((source.shape[0], 3, n_k))
     w = np.empty(3)
     for v in range(visible.shape[0]):
         t = visible[v]
@@ -404,11 +439,14 @@ def _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, c
 
 @numba.njit(cache=True, inline="always")
 def _wrap(i, size, mode):
-    if mode == 0:
-        return i % size
+    """`texture.wrap` of one index (mode: WRAP_CODES); a power-of-two period
+    takes a mask instead of a division (the same value for every i)."""
     if mode == 1:
         return min(max(i, 0), size - 1)
-    m = i % (2 * size)
+    period = size if mode == 0 else 2 * size
+    m = i & (period - 1) if (period & (period - 1)) == 0 else i % period
+    if mode == 0:
+        return m
     return m if m < size else 2 * size - 1 - m
 
 
@@ -450,6 +488,9 @@ def _linear_float(s, size, mode):
 def _bilinear_float(a, b, t00, t10, t01, t11):
     return (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11
 
+
+# k / 255 for every byte k (the same doubles as the division).
+_BYTE_VALUES = np.arange(256) / 255.0
 
 # An RGBA8 texel (uint32, R in the low byte) "spread" into four 16-bit lanes of
 # a uint64 (R, B, G, A at bits 0, 16, 32, 48), so one 64-bit multiply-add
@@ -493,6 +534,9 @@ def _nan_max(x, y):
     return x if x >= y else y
 
 
+_FLOAT32_TINY = np.float32(np.finfo(np.float32).tiny)
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, ddy_s, ddy_t):
     """The level choice of `texture.sample` (gl precision) for one quad's
@@ -514,7 +558,7 @@ def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, 
         level0 = min(max(level, 0), last)
         level1 = level0
     elif mip == 2:
-        r = _nan_max(rho2, np.float32(np.finfo(np.float32).tiny))
+        r = _nan_max(rho2, _FLOAT32_TINY)
         m, e = math.frexp(np.float64(r))
         m = np.float32(m)
         log2 = np.float32(np.float32(e - 1) + (np.float32(2) * m - np.float32(1)))
@@ -777,10 +821,10 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                                     if lanes:
                                         lanes_texel = x if lv == 0 else _lerp_lanes(w8, lanes_texel, x)
                                 if lanes:
-                                    tr = _lane(lanes_texel, 0) / 255.0
-                                    tg = _lane(lanes_texel, 1) / 255.0
-                                    tb = _lane(lanes_texel, 2) / 255.0
-                                    ta = _lane(lanes_texel, 3) / 255.0
+                                    tr = _BYTE_VALUES[_lane(lanes_texel, 0)]
+                                    tg = _BYTE_VALUES[_lane(lanes_texel, 1)]
+                                    tb = _BYTE_VALUES[_lane(lanes_texel, 2)]
+                                    ta = _BYTE_VALUES[_lane(lanes_texel, 3)]
                                 else:
                                     if two:
                                         for c in range(4):
