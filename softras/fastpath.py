@@ -39,9 +39,18 @@ per-draw constants outside of the per-pixel work).
 from __future__ import annotations
 
 import math
+import os
 import threading
 
-import numba
+# numba's default OpenMP threading layer leaves its threads spinning after a
+# parallel region; on a loaded 2-core machine they steal the core that
+# llvmpipe's threads (glref, same process) and other processes need: the 24k
+# grid took 24 ms with 2 spinning threads against 12 ms with 1 (docs/speed.md).
+# Passive waiting (read by libgomp when numba first starts its threads) keeps
+# the second thread's gain on a quiet machine.  An explicit setting wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+
+import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
 from . import clip as clip_stage
@@ -104,15 +113,21 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
     return None
 
 
-def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True) -> np.ndarray:
+def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
+                   reuse: bool = False) -> np.ndarray:
     """Render a scene that `unsupported` accepts at GL's sample positions (S, 2).
 
     Returns the per-sample colour buffer (H, W, S, 4) uint8, GL's y-up rows:
-    byte k where the general pipeline stores the float k/255.
+    byte k where the general pipeline stores the float k/255.  reuse: the
+    buffer is this thread's scratch colour buffer, overwritten by the next
+    call (for a caller that copies it at once; saves the page faults of a
+    fresh buffer).
     """
     offsets, _ = setup.sample_offsets(positions, "gl")
-    depth = _scratch.take("depth", (scene.height, scene.width, len(positions)), np.float64)
-    color, depth = new_framebuffer(scene.width, scene.height, len(positions), scene.background, depth)
+    shape = (scene.height, scene.width, len(positions))
+    depth = _scratch.take("depth", shape, np.float64)
+    color = _scratch.take("color", shape + (4,), np.uint8) if reuse else None
+    color, depth = new_framebuffer(scene.width, scene.height, len(positions), scene.background, depth, color)
     offsets = np.ascontiguousarray(offsets, np.int64)
     positions = np.ascontiguousarray(positions, np.float64)
     for draw in ordered_draws(scene):
@@ -120,15 +135,16 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     return color
 
 
-def new_framebuffer(width: int, height: int, samples: int, background,
-                    depth: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def new_framebuffer(width: int, height: int, samples: int, background, depth: np.ndarray | None = None,
+                    color: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(color (H, W, S, 4) uint8, depth (H, W, S) float64) cleared as `ops.new_framebuffer`
     with quantize: colour bytes round(clamp(premultiplied background) * 255), depth 1
-    (into ``depth`` when given)."""
+    (into ``depth`` and ``color`` when given)."""
     bg = np.asarray(background, np.float64)
     premultiplied = np.concatenate([bg[:3] * bg[3], bg[3:4]])
     clear_bytes = np.rint(np.clip(premultiplied, 0.0, 1.0) * 255.0).astype(np.uint8)
-    color = np.empty((height, width, samples, 4), np.uint8)
+    if color is None:
+        color = np.empty((height, width, samples, 4), np.uint8)
     if depth is None:
         depth = np.empty((height, width, samples))
     clear(color, depth, clear_bytes)
@@ -175,9 +191,25 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
                 tex_params, levels_flat, levels_flat.view(np.uint32), level_table, numba.get_num_threads())
 
 
+_tables_cache: dict = {}
+
+
 def texture_tables(tex: texture.MipTexture, fixed_point: bool):
     """A prepared texture as the kernel's (params (8,) int64, texels (N,) uint8,
-    levels (L, 3) int64 offset / width / height) tables."""
+    levels (L, 3) int64 offset / width / height) tables; cached per prepared
+    texture (`texture.prepare` returns the same object for a scene texture)."""
+    key = (id(tex), bool(fixed_point))
+    hit = _tables_cache.get(key)
+    if hit is not None and hit[0] is tex:
+        return hit[1]
+    tables = _texture_tables(tex, fixed_point)
+    if len(_tables_cache) >= 16:
+        _tables_cache.clear()
+    _tables_cache[key] = (tex, tables)
+    return tables
+
+
+def _texture_tables(tex: texture.MipTexture, fixed_point: bool):
     levels = tex.used_levels
     table = np.zeros((len(levels), 3), np.int64)
     at = 0

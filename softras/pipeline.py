@@ -136,7 +136,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     fast = (fast_path and rgba8 and pattern in (None, "gl") and texture_filter is None
             and fastpath.unsupported(scene, precision=precision, samples=n_samples, clipping=clipping) is None)
     if fast:
-        stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point)
+        stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point,
+                                         reuse=True)        # copied below
         if n_samples == 1 and resolve_filter == "box":
             return stored[::-1, :, 0].copy()        # the resolve of one RGBA8 sample is its bytes
         color = stored / 255.0                      # the stages' k/255 sample values

@@ -129,3 +129,58 @@ def test_bench_grid_is_bit_identical():
     from softras import bench
     scene = softras.load_scene(bench.grid_scene(40, 200))
     assert_same(*both_paths(scene), "bench grid")
+
+
+# ----------------------------------------------------------------------------- kernel pieces
+
+
+def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
+    """`_lerp_lanes` on spread RGBA8 words = `_lerp8` per channel, for every weight 0..256."""
+    rng = np.random.default_rng(7)
+    words = rng.integers(0, 2**32, size=(200, 2), dtype=np.uint64)
+    words[:4] = [[0, 0xFFFFFFFF], [0xFFFFFFFF, 0], [0xFFFFFFFF, 0xFFFFFFFF], [0x00FF00FF, 0xFF00FF00]]
+    for a_word, b_word in words:
+        a, b = fastpath._spread(a_word), fastpath._spread(b_word)
+        for c in range(4):
+            assert fastpath._lane(a, c) == (int(a_word) >> (8 * c)) & 255
+        for w in list(range(0, 257, 17)) + [255, 256]:
+            mixed = fastpath._lerp_lanes(w, a, b)
+            for c in range(4):
+                expect = fastpath._lerp8(w, (int(a_word) >> (8 * c)) & 255, (int(b_word) >> (8 * c)) & 255)
+                assert fastpath._lane(mixed, c) == expect, (hex(a_word), hex(b_word), w, c)
+
+
+@pytest.mark.parametrize("mode", ["repeat", "clamp_to_edge", "mirrored_repeat"])
+def test_wrap_equals_texture_wrap_for_power_of_two_and_other_sizes(mode):
+    from softras import texture
+    i = np.arange(-70, 70)
+    for size in (1, 2, 3, 7, 8, 16, 17):
+        got = [fastpath._wrap(int(k), size, fastpath.WRAP_CODES[mode]) for k in i]
+        assert got == texture.wrap(i, size, mode).tolist(), (mode, size)
+
+
+def test_reused_scratch_buffers_do_not_leak_between_renders():
+    """Set-up tables, corner attributes and depth live in reused buffers: a big
+    scene, a small one, then the big one again give the same bytes, and a
+    returned colour buffer is not overwritten by the next render."""
+    from softras import bench
+    big = softras.load_scene(bench.grid_scene(30, 160))
+    small = softras.load_scene(random_scene(3, width=40, height=30))
+    first = render_scene(big, precision="gl")
+    render_scene(small, precision="gl")
+    assert_same(first, render_scene(big, precision="gl"), "big scene after a small one")
+    positions = np.array([[0.5, 0.5]])
+    kept = fastpath.render_samples(big, positions)
+    copy = kept.copy()
+    fastpath.render_samples(small, positions)
+    fastpath.render_samples(small, positions, reuse=True)
+    assert (kept == copy).all()
+
+
+def test_texture_tables_are_cached_per_prepared_texture():
+    from softras import bench, texture
+    scene = softras.load_scene(bench.floor_scene(32))
+    tex = texture.prepare(scene.textures["checker"])
+    assert fastpath.texture_tables(tex, True) is fastpath.texture_tables(tex, True)
+    params_float = fastpath.texture_tables(tex, False)[0]
+    assert params_float[fastpath._T_FIXED] == 0 and fastpath.texture_tables(tex, True)[0][fastpath._T_FIXED] == 1
