@@ -20,9 +20,11 @@ row still gives its cost.
 Memory: ``peak_mib`` is the peak of Python-tracked allocations during one
 extra (untimed) render, measured with ``tracemalloc``: numpy arrays and
 Python objects, including every array the pipeline and the fast path create
-from Python.  Arrays allocated *inside* numba kernels (numba's own
-allocator) are not included; they are the kernels' small per-tile scratch
-and the set-up tables (about 250 bytes per triangle).  ``rss_mib`` is the
+from Python, plus the fast path's per-thread reused buffers (set-up
+tables, corner attributes, depth and colour buffers: about 400 bytes per
+triangle and 12 per sample), which a warm render no longer allocates but
+still holds.  Arrays allocated *inside* numba kernels (numba's own
+allocator: the kernels' small per-tile scratch) are not included.  ``rss_mib`` is the
 process's peak resident set size so far (``resource.getrusage``, monotone,
 process-wide: it includes glref and every earlier scene).
 
@@ -190,11 +192,13 @@ def _median_time(fn, runs: int) -> tuple[float, object]:
 
 
 def _peak_mib(fn) -> float:
-    """tracemalloc peak (MiB) of Python-tracked allocations during fn()."""
+    """tracemalloc peak (MiB) of Python-tracked allocations during fn(), plus the
+    fast path's reused buffers held after it (`fastpath.scratch_nbytes`)."""
+    from . import fastpath
     tracemalloc.start()
     try:
         fn()
-        return tracemalloc.get_traced_memory()[1] / 2**20
+        return (tracemalloc.get_traced_memory()[1] + fastpath.scratch_nbytes()) / 2**20
     finally:
         tracemalloc.stop()
 

@@ -257,6 +257,11 @@ class _Scratch(threading.local):
 _scratch = _Scratch()
 
 
+def scratch_nbytes() -> int:
+    """Bytes held by this thread's reused fast-path buffers (for memory reports)."""
+    return sum(buffer.nbytes for buffer in _scratch.buffers.values())
+
+
 # ----------------------------------------------------------------------------- setup
 
 

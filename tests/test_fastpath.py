@@ -184,3 +184,13 @@ def test_texture_tables_are_cached_per_prepared_texture():
     assert fastpath.texture_tables(tex, True) is fastpath.texture_tables(tex, True)
     params_float = fastpath.texture_tables(tex, False)[0]
     assert params_float[fastpath._T_FIXED] == 0 and fastpath.texture_tables(tex, True)[0][fastpath._T_FIXED] == 1
+
+
+def test_scratch_nbytes_counts_the_reused_buffers():
+    """bench's memory figure adds the buffers a warm render keeps (fastpath.scratch_nbytes)."""
+    from softras import bench
+    scene = softras.load_scene(bench.grid_scene(8, 96))
+    render_scene(scene, precision="gl")
+    held = fastpath.scratch_nbytes()
+    assert held >= 96 * 96 * (8 + 4)                       # depth (float64) and colour (RGBA8) at least
+    assert held >= 2 * 8 * 8 * (fastpath._NF + fastpath._NI) * 8   # the set-up tables of 128 triangles
