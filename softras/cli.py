@@ -324,22 +324,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return _compare_scene(str(scene), args, args.out_dir)
 
 
-def _scene_paths(paths: list[str]) -> list[Path]:
-    """Scene files from PATH arguments: files as given, folders expanded to *.json."""
-    found: list[Path] = []
-    for text in paths:
-        path = Path(text)
-        if path.is_dir():
-            found.extend(sorted(path.glob("*.json")))
-        elif path.is_file():
-            found.append(path)
-        else:
-            raise CLIError(f"{path}: no such scene file")
-    if not found:
-        raise CLIError("no scene files in " + ", ".join(paths))
-    return found
-
-
 def _write_golden_failure(folder: Path, result) -> Path:
     """Write golden / gl / soft images and diff heat maps of a failed scene."""
     from softras.imageio import write_png_atomic
@@ -365,7 +349,12 @@ def cmd_golden(args: argparse.Namespace) -> int:
     if args.update and args.out_dir is not None:
         raise CLIError("--out-dir applies to verification only, not --update")
     if args.paths:
-        paths = _scene_paths(args.paths)
+        from softras.scene import scene_files
+
+        try:
+            paths = [Path(path) for path in scene_files(args.paths)]
+        except (OSError, ValueError) as error:
+            raise CLIError(str(error)) from None
     else:
         paths = golden.default_scenes()
         if not paths:

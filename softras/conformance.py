@@ -43,6 +43,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from softras.scene import scene_files
+
 __all__ = [
     "PASS", "WARN", "FAIL", "VERDICT_NAMES", "FEATURE_TOLERANCES", "ConformanceError", "SceneResult",
     "feature_tolerance", "scene_tolerance", "select", "parse_shard", "shard", "check_scene", "judge",
@@ -175,18 +177,11 @@ def select(paths: Iterable[str | os.PathLike], *, patterns: Iterable[str] = (),
     ConformanceError
         A missing path, no scenes at all, no scene matching ``-k``, a bad shard.
     """
-    found: list[Path] = []
-    for text in paths:
-        path = Path(text)
-        if path.is_dir():
-            found.extend(sorted(path.glob("*.json")))
-        elif path.is_file():
-            found.append(path)
-        else:
-            raise ConformanceError(f"{path}: no such scene file or folder")
-    found = sorted(dict.fromkeys(found), key=lambda path: (path.stem, str(path)))
-    if not found:
-        raise ConformanceError("no scene files in " + ", ".join(str(p) for p in paths))
+    try:
+        found = [Path(path) for path in scene_files(paths)]
+    except (OSError, ValueError) as error:
+        raise ConformanceError(str(error)) from None
+    found.sort(key=lambda path: (path.stem, str(path)))
     patterns = list(patterns)
     if patterns:
         found = [path for path in found if any(_matches(path.stem, pattern) for pattern in patterns)]
@@ -305,8 +300,6 @@ def judge(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, soft_ids=
     from softras.ambiguity import classify_differences
     from softras.metrics import compare, error_map_image, pixel_difference
 
-    height, width = soft.shape[:2]
-    total = height * width
     strict = compare(soft, gl, flip=True, **tolerance)
     pixel_diff = pixel_difference(soft, gl)
     bad = pixel_diff > tolerance["threshold"]

@@ -331,12 +331,7 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
     # -- From here on, the pipeline's per-draw wiring (`pipeline.render_scene`,
     # its general path), line by line, for the fragments t of this pixel only;
     # the extra lines record the intermediates (lighting terms, texel reads).
-    weights = np.take_along_axis(clipped.weights[tris.triangle], tris.corner[..., None], axis=1)
-    source = mesh.indices[clipped.source[tris.triangle]]
-
-    def corners(values):
-        return np.einsum("tkj,tjc->tkc", weights, values[source])
-
+    source, corners = pipeline.corner_values(clipped, tris, mesh)
     material = draw.material
     base = vertex_colors * material.color
     shading = material.shading
@@ -355,20 +350,14 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
     z = ops.quantize_depth(z_raw) if gl else z_raw
     terms = [None] * len(t)
     if shading == "flat":
-        normal = fragment.face_normals(world, source)
-        centroid = world[source].mean(axis=1)
-        face_base = base[source[:, 2]]
-        lit = fragment.blinn_phong(face_base[:, :3], centroid, normal, eye, scene.lights, material)
-        colors = np.concatenate([lit, face_base[:, 3:]], axis=1)[t]
+        face_colors, normal, centroid, face_base = pipeline.flat_colors(world, source, base, eye,
+                                                                        scene.lights, material)
+        colors = face_colors[t]
         terms = [dict(_lighting_terms(face_base[k, :3], centroid[k], normal[k], eye, scene.lights,
                                       material), model="flat", provoking_vertex=int(source[k, 2]))
                  for k in t]
     elif shading == "phong":
-        colors = interpolate.interpolate(persp, corners(base)[t])
-        position = interpolate.interpolate(persp, corners(world)[t])
-        world_normals = vertex.world_normals(mesh.normals, draw.world, unit=False)
-        normal = interpolate.interpolate(persp, corners(world_normals)[t])
-        normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+        colors, position, normal = pipeline.phong_attributes(persp, corners, t, base, world, draw)
         mapping = [None] * len(t)
         if material.normal_map is not None or material.bump_map is not None:
             interpolated_normal = normal

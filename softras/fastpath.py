@@ -57,6 +57,7 @@ from . import clip as clip_stage
 from . import ops, setup, texture, vertex
 from .ops import _depth_pass, blend_unorm8, unorm8
 from .scene import Scene, ordered_draws
+from .texture import WRAP_CODES, wrap_index
 
 TILE = 64          # pixels per tile side (binning and the parallel unit)
 BLOCK = 8          # pixels per block side (hierarchical coverage test)
@@ -69,7 +70,6 @@ _F_X, _F_Y, _F_Z, _F_W, _F_DZDX, _F_DZDY, _NF = 0, 3, 6, 9, 12, 13, 14
 _I_A, _I_B, _I_X0, _I_Y0, _I_INC, _I_SWAP, _I_VIS, _NI = 0, 3, 6, 9, 12, 15, 16, 17
 
 CULL_CODES = {"none": 0, "back": 1, "front": 2}
-WRAP_CODES = {"repeat": 0, "clamp_to_edge": 1, "mirrored_repeat": 2}
 FILTER_CODES = {"nearest": 0, "linear": 1}
 MIN_FILTERS = ("nearest", "linear") + texture.MIPMAP_FILTERS
 # Texture parameter vector (int64): enabled, min image filter, mag filter,
@@ -102,9 +102,8 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
             return f"{draw.path}: {draw.mesh.primitive}"
         if material.shading != "unlit":
             return f"{draw.path}: {material.shading} shading"
-        for extra in ("normal_map", "bump_map"):
-            if getattr(material, extra, None) is not None:
-                return f"{draw.path}: {extra}"
+        if material.normal_map is not None or material.bump_map is not None:
+            return f"{draw.path}: normal or bump map"
         if material.texture is not None:
             tex = scene.textures[material.texture]
             if (tex.max_anisotropy > 1 or tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
@@ -475,22 +474,9 @@ def _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, c
 
 
 @numba.njit(cache=True, inline="always")
-def _wrap(i, size, mode):
-    """`texture.wrap` of one index (mode: WRAP_CODES); a power-of-two period
-    takes a mask instead of a division (the same value for every i)."""
-    if mode == 1:
-        return min(max(i, 0), size - 1)
-    period = size if mode == 0 else 2 * size
-    m = i & (period - 1) if (period & (period - 1)) == 0 else i % period
-    if mode == 0:
-        return m
-    return m if m < size else 2 * size - 1 - m
-
-
-@numba.njit(cache=True, inline="always")
 def _nearest(s, size, mode):
     """`texture.nearest_addresses`: the texel index of coordinate s."""
-    return _wrap(np.int64(np.floor(np.float32(s) * np.float32(size))), size, mode)
+    return wrap_index(np.int64(np.floor(np.float32(s) * np.float32(size))), size, mode)
 
 
 @numba.njit(cache=True, inline="always")
@@ -510,7 +496,7 @@ def _linear_fixed(s, size, mode):
     fixed = np.int64(np.rint(np.float32(s32 * np.float32(size * 256)))) - 128
     weight = fixed & 255
     i0 = fixed >> 8
-    return _wrap(i0, size, mode), _wrap(i0 + 1, size, mode), weight
+    return wrap_index(i0, size, mode), wrap_index(i0 + 1, size, mode), weight
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -518,7 +504,7 @@ def _linear_float(s, size, mode):
     """`texture.linear_addresses` with float weights: (i0, i1, weight)."""
     u = s * size - 0.5
     fu = np.floor(u)
-    return _wrap(np.int64(fu), size, mode), _wrap(np.int64(fu) + 1, size, mode), u - fu
+    return wrap_index(np.int64(fu), size, mode), wrap_index(np.int64(fu) + 1, size, mode), u - fu
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

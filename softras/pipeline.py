@@ -62,6 +62,48 @@ def uv_at_fragments(uvs, corners, persp, tris, t, frags, centres, gl: bool):
     return corner_uv, st, ddx, ddy
 
 
+def corner_values(clipped, tris, mesh):
+    """Attributes at the set-up triangles' corners.
+
+    Returns source (T', 3): the mesh vertex indices of each set-up
+    triangle's source triangle, and corners(values): (N, K) per-vertex values
+    -> (T', 3, K) at the corners, the clip weights (reordered like the
+    corners) applied to the source triangle's vertex values.
+    """
+    weights = np.take_along_axis(clipped.weights[tris.triangle], tris.corner[..., None], axis=1)
+    source = mesh.indices[clipped.source[tris.triangle]]                # (T', 3)
+
+    def corners(values: np.ndarray) -> np.ndarray:
+        return np.einsum("tkj,tjc->tkc", weights, values[source])
+
+    return source, corners
+
+
+def flat_colors(world, source, base, eye, lights, material):
+    """Flat shading: one colour per set-up triangle from its source triangle's
+    face normal, centroid and provoking (last) vertex colour, all world space.
+
+    world : (N, 3) vertex positions; source : (T', 3); base : (N, 4) straight
+    vertex colours.  Returns colors (T', 4), normal (T', 3), centroid
+    (T', 3) and the provoking vertex colours (T', 4).
+    """
+    normal = fragment.face_normals(world, source)
+    centroid = world[source].mean(axis=1)
+    face_base = base[source[:, 2]]
+    lit = fragment.blinn_phong(face_base[:, :3], centroid, normal, eye, lights, material)
+    return np.concatenate([lit, face_base[:, 3:]], axis=1), normal, centroid, face_base
+
+
+def phong_attributes(persp, corners, t, base, world, draw):
+    """Per-fragment inputs of Phong shading, perspective-correct: colours
+    (F, 4) straight, world positions (F, 3) and unit world normals (F, 3)."""
+    colors = interpolate.interpolate(persp, corners(base)[t])
+    position = interpolate.interpolate(persp, corners(world)[t])
+    world_normals = vertex.world_normals(draw.mesh.normals, draw.world, unit=False)
+    normal = interpolate.interpolate(persp, corners(world_normals)[t])
+    return colors, position, normal / np.linalg.norm(normal, axis=1, keepdims=True)
+
+
 def mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal, precision,
                     texture_fixed_point):
     """Phong shading with a normal or bump map: (F, 3) world normals perturbed
@@ -199,15 +241,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         if len(frags) == 0:
             continue
 
-        # Per setup-vertex attributes: clip weights (reordered like the
-        # corners) applied to the source triangle's vertex attributes.
-        weights = np.take_along_axis(clipped.weights[tris.triangle], tris.corner[..., None], axis=1)
-        source = mesh.indices[clipped.source[tris.triangle]]                # (T', 3)
-
-        def corners(values: np.ndarray) -> np.ndarray:
-            """(N, K) per-vertex values -> (T', 3, K) at the set-up triangles' corners."""
-            return np.einsum("tkj,tjc->tkc", weights, values[source])
-
+        source, corners = corner_values(clipped, tris, mesh)
         material = draw.material
         base = vertex_colors * material.color                  # straight, per vertex
         shading = material.shading
@@ -227,18 +261,9 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         if gl:
             z = ops.quantize_depth(z)
         if shading == "flat":
-            # One colour per source triangle: face normal, centroid, provoking (last) vertex.
-            normal = fragment.face_normals(world, source)
-            centroid = world[source].mean(axis=1)
-            face_base = base[source[:, 2]]
-            lit = fragment.blinn_phong(face_base[:, :3], centroid, normal, eye, scene.lights, material)
-            colors = np.concatenate([lit, face_base[:, 3:]], axis=1)[t]
+            colors = flat_colors(world, source, base, eye, scene.lights, material)[0][t]
         elif shading == "phong":
-            colors = interpolate.interpolate(persp, corners(base)[t])
-            position = interpolate.interpolate(persp, corners(world)[t])
-            world_normals = vertex.world_normals(mesh.normals, draw.world, unit=False)
-            normal = interpolate.interpolate(persp, corners(world_normals)[t])
-            normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+            colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
             if material.normal_map is not None or material.bump_map is not None:
                 normal = mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
                                          precision, texture_fixed_point)

@@ -150,6 +150,9 @@ class Texture:
     procedural: str | None = None             # "checker" | "gradient" | "noise"
     size: tuple[int, int] | None = None       # (width, height) of a procedural texture
     params: dict = field(default_factory=dict)  # its parameters, defaults filled in
+    # An image texture's level 0, straight RGBA (H, W, 4) uint8, row 0 = v 0:
+    # decoded once by the loader (which must decode it to check the file).
+    decoded: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def mipmapped(self) -> bool:
@@ -578,9 +581,10 @@ _PROCEDURAL_TEXTURE_KEYS = {
 }
 
 
-def _check_image_file(path: str, place: str) -> None:
-    """Decode a texture image once at load time, so that a corrupt, truncated or
+def _decode_image(path: str, place: str) -> np.ndarray:
+    """Decode a texture image once, at load time, so that a corrupt, truncated or
     oversized file is a SceneError here rather than a crash in a renderer.
+    Returns its straight RGBA texels, (H, W, 4) uint8, row 0 = the file's top row.
 
     The size comes from the file's header and is checked (MAX_SIDE per side,
     MAX_TEXELS in all) before any pixel is decoded.
@@ -593,7 +597,7 @@ def _check_image_file(path: str, place: str) -> None:
             if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE) or width * height > MAX_TEXELS:
                 raise SceneError(place, f"{path} is {width} x {height} texels, more than the limit "
                                         f"({MAX_SIDE} per side, {MAX_TEXELS} in all)")
-            image.load()
+            return _readonly(texels.rgba_texels(image))
     except SceneError:
         raise
     except UnidentifiedImageError:
@@ -620,7 +624,7 @@ def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
         data = _object(entry, place, _TEXTURE_KEYS + extra)
         if ("image" in data) == ("procedural" in data):
             raise SceneError(place, "needs exactly one of 'image' and 'procedural'")
-        image = procedural = size = None
+        image = procedural = size = decoded = None
         params = {}
         if "image" in data:
             if "size" in data:
@@ -628,7 +632,7 @@ def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
             image = os.path.normpath(os.path.join(base_dir, _string(data["image"], f"{place}.image")))
             if not os.path.isfile(image):
                 raise SceneError(f"{place}.image", f"file not found: {image}")
-            _check_image_file(image, f"{place}.image")
+            decoded = _decode_image(image, f"{place}.image")
         else:
             procedural = _choice(data["procedural"], f"{place}.procedural", PROCEDURAL_TEXTURES)
             if "size" not in data:
@@ -659,7 +663,7 @@ def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
             min_filter=_choice(data.get("min_filter", "nearest_mipmap_linear"), f"{place}.min_filter", MIN_FILTERS),
             mag_filter=_choice(data.get("mag_filter", "linear"), f"{place}.mag_filter", MAG_FILTERS),
             max_anisotropy=_number(data.get("max_anisotropy", 1), f"{place}.max_anisotropy", 1, 16),
-            procedural=procedural, size=size, params=params)
+            procedural=procedural, size=size, params=params, decoded=decoded)
     return textures
 
 
@@ -1024,6 +1028,28 @@ def _read_json(path: str) -> Any:
         raise SceneError(path, f"invalid JSON: {error}") from None
     except RecursionError:
         raise SceneError(path, "invalid JSON: nested too deeply") from None
+
+
+def scene_files(paths) -> list[str]:
+    """The scene files named by command-line PATHs: a file as given, a folder's
+    ``*.json`` files sorted by name; each file once, in the order found.
+
+    Raises FileNotFoundError (one line) for a path that does not exist and
+    ValueError when the paths hold no scene file at all.
+    """
+    found: dict[str, None] = {}
+    for path in map(os.fspath, paths):
+        if os.path.isdir(path):
+            names = sorted(name for name in os.listdir(path) if name.endswith(".json"))
+            found.update((os.path.join(path, name), None) for name in names
+                         if os.path.isfile(os.path.join(path, name)))
+        elif os.path.isfile(path):
+            found[path] = None
+        else:
+            raise FileNotFoundError(f"{path}: no such scene file or folder")
+    if not found:
+        raise ValueError("no scene files in " + ", ".join(map(os.fspath, paths)))
+    return list(found)
 
 
 def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:

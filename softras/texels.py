@@ -27,6 +27,8 @@ import numpy as np
 
 def source_texels(texture) -> np.ndarray:
     """Level 0 of a scene texture (`softras.scene.Texture`) as straight RGBA: (H, W, 4) uint8, row 0 = v 0."""
+    if texture.decoded is not None:                 # an image, decoded by the loader
+        return texture.decoded
     if texture.image is not None:
         return load_image(texture.image)
     return procedural_texels(texture.procedural, texture.size, texture.params)
@@ -39,7 +41,12 @@ def load_image(path: str) -> np.ndarray:
     """
     from PIL import Image
     with Image.open(path) as image:
-        return np.ascontiguousarray(np.asarray(image.convert("RGBA"), dtype=np.uint8))
+        return rgba_texels(image)
+
+
+def rgba_texels(image) -> np.ndarray:
+    """An open Pillow image -> (H, W, 4) uint8 straight RGBA, row 0 = its top row."""
+    return np.ascontiguousarray(np.asarray(image.convert("RGBA"), dtype=np.uint8))
 
 
 def _rgba8(color) -> np.ndarray:

@@ -56,8 +56,6 @@ import numba
 import numpy as np
 
 from .scene import MIPMAP_FILTERS, Texture
-from .texels import (  # noqa: F401 -- the texel data, re-exported for the stage's readers
-    downsample, load_image, mip_chain, mip_sizes, premultiply_rgba8, procedural_texels, source_texels)
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,6 +121,24 @@ def wrap(i: np.ndarray, size: int, mode: str) -> np.ndarray:
         m = np.mod(i, 2 * size)
         return np.where(m < size, m, 2 * size - 1 - m)
     raise ValueError(f"unknown wrap mode {mode!r}")
+
+
+# Wrap modes as integers for the compiled kernels.
+WRAP_CODES = {"repeat": 0, "clamp_to_edge": 1, "mirrored_repeat": 2}
+
+
+@numba.njit(cache=True, inline="always")
+def wrap_index(i, size, mode):
+    """`wrap` of one integer index in a compiled kernel (mode: WRAP_CODES).
+    A power-of-two period takes a mask instead of a division (the same value
+    for every i, negative ones included)."""
+    if mode == 1:
+        return min(max(i, 0), size - 1)
+    period = size if mode == 0 else 2 * size
+    m = i & (period - 1) if (period & (period - 1)) == 0 else i % period
+    if mode == 0:
+        return m
+    return m if m < size else 2 * size - 1 - m
 
 
 # ----------------------------------------------------------------------------- derivatives and LOD
@@ -470,7 +486,6 @@ def llvmpipe_aniso_levels(du: np.ndarray, dv: np.ndarray, n_levels: int) -> np.n
     return np.clip(np.trunc(lod), 0, n_levels - 1).astype(np.int64)
 
 
-_WRAP_CODES = {"repeat": 0, "clamp_to_edge": 1, "mirrored_repeat": 2}
 
 
 @dataclass(frozen=True)
@@ -635,7 +650,7 @@ def sample_anisotropic_llvmpipe(texture: MipTexture, st: np.ndarray, ddx: np.nda
     _llvmpipe_ewa_kernel(flat.texels, flat.offsets, flat.widths, flat.heights, level,
                          st32[:, 0].copy(), st32[:, 1].copy(), d32x[:, 0].copy(), d32y[:, 0].copy(),
                          d32x[:, 1].copy(), d32y[:, 1].copy(), width0, height0,
-                         _WRAP_CODES[texture.wrap_s], _WRAP_CODES[texture.wrap_t],
+                         WRAP_CODES[texture.wrap_s], WRAP_CODES[texture.wrap_t],
                          llvmpipe_ewa_table(), out, reads)
     result = out.astype(np.float64)
     empty = np.nonzero(np.isnan(result[:, 0]))[0]

@@ -47,7 +47,7 @@ import weakref
 import numba
 import numpy as np
 
-from . import texture
+from . import texels, texture
 from .texture import MipTexture
 
 FILTERS = ("ripmap", "ewa", "level0")
@@ -273,26 +273,12 @@ def _ewa_kernel(texels, offsets, widths, heights, level, s, t, s00, s01, s11, wr
         n_reads = 0
         for j in range(int(np.floor(cv - hv)), int(np.ceil(cv + hv)) + 1):
             dv = j - cv
-            jj = j
-            if wrap_t == 0:
-                jj = j % hl
-            elif wrap_t == 1:
-                jj = min(max(j, 0), hl - 1)
-            else:
-                m = j % (2 * hl)
-                jj = m if m < hl else 2 * hl - 1 - m
+            jj = texture.wrap_index(j, hl, wrap_t)
             for i in range(int(np.floor(cu - hu)), int(np.ceil(cu + hu)) + 1):
                 du = i - cu
                 q = m00 * du * du + 2.0 * m01 * du * dv + m11 * dv * dv
                 if q < 1.0:
-                    ii = i
-                    if wrap_s == 0:
-                        ii = i % wl
-                    elif wrap_s == 1:
-                        ii = min(max(i, 0), wl - 1)
-                    else:
-                        m = i % (2 * wl)
-                        ii = m if m < wl else 2 * wl - 1 - m
+                    ii = texture.wrap_index(i, wl, wrap_s)
                     w = np.exp(-alpha * q)
                     texel = texels[base + jj * wl + ii]
                     for c in range(4):
@@ -311,7 +297,7 @@ def ewa_level(tex: MipTexture, flat, S: np.ndarray, st: np.ndarray, level: np.nd
     sv = flat.heights[level] / h0
     out = np.empty((len(st), 4))
     reads = np.zeros(len(st), np.int64)
-    codes = texture._WRAP_CODES
+    codes = texture.WRAP_CODES
     _ewa_kernel(flat.texels, flat.offsets, flat.widths, flat.heights, level,
                 np.ascontiguousarray(st[:, 0]), np.ascontiguousarray(st[:, 1]),
                 S[:, 0, 0] * su * su + 1.0, S[:, 0, 1] * su * sv, S[:, 1, 1] * sv * sv + 1.0,
@@ -429,9 +415,8 @@ def filter_costs(n: int = 200_000, runs: int = 5, size: int = 256, seed: int = 0
     warm-up run).  GL filters are timed in both precisions; ripmap and EWA
     have one (float64).
     """
-    from .scene import Texture
-    level0 = texture.premultiply_rgba8(texture.procedural_texels("noise", (size, size), {"seed": seed}))
-    chain = texture.mip_chain(level0)
+    level0 = texels.premultiply_rgba8(texels.procedural_texels("noise", (size, size), {"seed": seed}))
+    chain = texels.mip_chain(level0)
     st, ddx, ddy = synthetic_footprints(n, size, seed)
     rows = []
     for label, min_filter, aniso, beyond in COST_FILTERS:

@@ -150,15 +150,6 @@ def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
                 assert fastpath._lane(mixed, c) == expect, (hex(a_word), hex(b_word), w, c)
 
 
-@pytest.mark.parametrize("mode", ["repeat", "clamp_to_edge", "mirrored_repeat"])
-def test_wrap_equals_texture_wrap_for_power_of_two_and_other_sizes(mode):
-    from softras import texture
-    i = np.arange(-70, 70)
-    for size in (1, 2, 3, 7, 8, 16, 17):
-        got = [fastpath._wrap(int(k), size, fastpath.WRAP_CODES[mode]) for k in i]
-        assert got == texture.wrap(i, size, mode).tolist(), (mode, size)
-
-
 def test_reused_scratch_buffers_do_not_leak_between_renders():
     """Set-up tables, corner attributes and depth live in reused buffers: a big
     scene, a small one, then the big one again give the same bytes, and a

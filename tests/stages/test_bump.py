@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from softras import displace, fragment, meshes, vertex
-from softras.texture import MipTexture, mip_chain
+from softras.texels import mip_chain
+from softras.texture import MipTexture
 
 
 def height_texture(heights: np.ndarray, wrap: str = "clamp_to_edge", min_filter: str = "linear") -> MipTexture:
@@ -186,7 +187,7 @@ def test_displaced_ramp_tilts_the_recomputed_normals():
 
 
 def test_bumps_procedural_heights_by_hand():
-    from softras.texture import procedural_texels
+    from softras.texels import procedural_texels
     texels = procedural_texels("bumps", (8, 8), {"cells": 2})
     assert texels.shape == (8, 8, 4) and (texels[..., 3] == 255).all()
     np.testing.assert_array_equal(texels[..., 0], texels[..., 1])

@@ -6,7 +6,7 @@ Hand-computed values; the comparison with OpenGL is in tests/test_texture_gl.py.
 import numpy as np
 import pytest
 
-from softras import texture
+from softras import texels, texture
 
 
 # --------------------------------------------------------------------------- texels and mips
@@ -15,45 +15,45 @@ from softras import texture
 def test_premultiply_rounds_to_nearest():
     straight = np.array([[255, 128, 0, 128], [10, 20, 30, 255], [200, 200, 200, 0]], np.uint8)
     # 255*128/255 = 128; 128*128/255 = 64.25 -> 64; alpha 255 keeps rgb; alpha 0 clears it.
-    np.testing.assert_array_equal(texture.premultiply_rgba8(straight),
+    np.testing.assert_array_equal(texels.premultiply_rgba8(straight),
                                   [[128, 64, 0, 128], [10, 20, 30, 255], [0, 0, 0, 0]])
 
 
 def test_mip_sizes_npot():
-    assert texture.mip_sizes(5, 3) == [(5, 3), (2, 1), (1, 1)]
-    assert texture.mip_sizes(8, 1) == [(8, 1), (4, 1), (2, 1), (1, 1)]
-    assert texture.mip_sizes(1, 1) == [(1, 1)]
-    assert texture.mip_sizes(37, 23) == [(37, 23), (18, 11), (9, 5), (4, 2), (2, 1), (1, 1)]
+    assert texels.mip_sizes(5, 3) == [(5, 3), (2, 1), (1, 1)]
+    assert texels.mip_sizes(8, 1) == [(8, 1), (4, 1), (2, 1), (1, 1)]
+    assert texels.mip_sizes(1, 1) == [(1, 1)]
+    assert texels.mip_sizes(37, 23) == [(37, 23), (18, 11), (9, 5), (4, 2), (2, 1), (1, 1)]
 
 
 def test_mip_chain_shapes_match_sizes():
     level0 = np.zeros((3, 5, 4), np.uint8)
-    chain = texture.mip_chain(level0)
-    assert [lvl.shape[1::-1] for lvl in chain] == texture.mip_sizes(5, 3)
+    chain = texels.mip_chain(level0)
+    assert [lvl.shape[1::-1] for lvl in chain] == texels.mip_sizes(5, 3)
 
 
 def test_downsample_is_a_rounded_2x2_box():
     level = np.array([[0, 255], [255, 255]], np.uint8)[..., None]
-    assert texture.downsample(level)[0, 0, 0] == (0 + 3 * 255 + 2) // 4 == 191
+    assert texels.downsample(level)[0, 0, 0] == (0 + 3 * 255 + 2) // 4 == 191
     # 3x3: floor(3/2) = 1, the box is the top-left 2x2; the last row and column are skipped.
     level = np.array([[4, 8, 99], [12, 16, 99], [99, 99, 99]], np.uint8)[..., None]
-    assert texture.downsample(level).shape == (1, 1, 1)
-    assert texture.downsample(level)[0, 0, 0] == 10
+    assert texels.downsample(level).shape == (1, 1, 1)
+    assert texels.downsample(level)[0, 0, 0] == 10
     # One texel thin: a 2x1 box.
     level = np.array([[10, 21, 30, 40]], np.uint8)[..., None]
-    np.testing.assert_array_equal(texture.downsample(level)[..., 0], [[16, 35]])
+    np.testing.assert_array_equal(texels.downsample(level)[..., 0], [[16, 35]])
 
 
 def test_mip_memory_is_four_thirds():
     """The lecture's figure: a full mip chain costs at most 1/3 more than level 0."""
-    chain = texture.mip_chain(np.zeros((256, 256, 4), np.uint8))
+    chain = texels.mip_chain(np.zeros((256, 256, 4), np.uint8))
     total = sum(level.size for level in chain)
     assert total / chain[0].size == pytest.approx(4 / 3, rel=1e-4)
     assert total / chain[0].size < 4 / 3
 
 
 def test_procedural_checker_layout():
-    tex = texture.procedural_texels("checker", (4, 4), {"squares": 2, "color0": [0, 0, 0, 1],
+    tex = texels.procedural_texels("checker", (4, 4), {"squares": 2, "color0": [0, 0, 0, 1],
                                                         "color1": [1, 1, 1, 1]})
     assert tex.shape == (4, 4, 4) and tex.dtype == np.uint8
     assert tex[0, 0, 0] == 0 and tex[0, 2, 0] == 255 and tex[2, 0, 0] == 255 and tex[3, 3, 0] == 0
@@ -61,16 +61,16 @@ def test_procedural_checker_layout():
 
 
 def test_procedural_gradient_samples_texel_centres():
-    tex = texture.procedural_texels("gradient", (4, 1), {"direction": "horizontal",
+    tex = texels.procedural_texels("gradient", (4, 1), {"direction": "horizontal",
                                                          "color0": [0, 0, 0, 1], "color1": [1, 1, 1, 1]})
     # (i + 0.5) / 4 * 255 = 31.875, 95.625, 159.375, 223.125
     np.testing.assert_array_equal(tex[0, :, 0], [32, 96, 159, 223])
 
 
 def test_procedural_noise_is_seeded():
-    a = texture.procedural_texels("noise", (8, 8), {"seed": 5})
-    b = texture.procedural_texels("noise", (8, 8), {"seed": 5})
-    c = texture.procedural_texels("noise", (8, 8), {"seed": 6})
+    a = texels.procedural_texels("noise", (8, 8), {"seed": 5})
+    b = texels.procedural_texels("noise", (8, 8), {"seed": 5})
+    c = texels.procedural_texels("noise", (8, 8), {"seed": 6})
     np.testing.assert_array_equal(a, b)
     assert (a != c).any()
 
@@ -220,7 +220,7 @@ def _ramp_texture(min_filter, mag_filter, max_anisotropy):
     level0 = np.zeros((16, 16, 4), np.uint8)
     level0[..., 0] = 10 * np.arange(16)[None, :]
     level0[..., 3] = 255
-    return texture.MipTexture("ramp", texture.mip_chain(level0), "repeat", "repeat",
+    return texture.MipTexture("ramp", texels.mip_chain(level0), "repeat", "repeat",
                               min_filter, mag_filter, float(max_anisotropy))
 
 
@@ -274,3 +274,11 @@ def test_llvmpipe_ewa_weights_are_normalized_and_ignore_max_anisotropy():
     _, reads = texture.sample_anisotropic_llvmpipe(ramp16, np.array([[0.5, 0.5]]),
                                                    np.array([[8 / 16, 0.0]]), np.array([[0.0, 1 / 16]]))
     assert 12 <= reads[0] <= 40
+
+
+@pytest.mark.parametrize("mode", ["repeat", "clamp_to_edge", "mirrored_repeat"])
+def test_compiled_wrap_index_equals_wrap_for_power_of_two_and_other_sizes(mode):
+    i = np.arange(-70, 70)
+    for size in (1, 2, 3, 7, 8, 16, 17):
+        got = [texture.wrap_index(int(k), size, texture.WRAP_CODES[mode]) for k in i]
+        assert got == texture.wrap(i, size, mode).tolist(), (mode, size)

@@ -14,11 +14,11 @@ import pytest
 
 import softras
 from conftest import SCENES
-from softras import texture, texture_beyond
+from softras import texels, texture, texture_beyond
 
 
 def _tex(level0, min_filter="linear_mipmap_linear", wrap="repeat"):
-    return texture.MipTexture("t", texture.mip_chain(level0), wrap, wrap, min_filter, "linear", 1.0)
+    return texture.MipTexture("t", texels.mip_chain(level0), wrap, wrap, min_filter, "linear", 1.0)
 
 
 # --------------------------------------------------------------------------- ripmap
@@ -42,7 +42,7 @@ def test_ripmap_memory_is_four_times_mip_memory_four_thirds():
     """The lecture's figures: a mip chain holds ~4/3 of level 0's texels, a
     ripmap ~4x: sum over i, j of 2^-i 2^-j = (2 - 1/256)^2 for 256 x 256."""
     level0 = np.zeros((256, 256, 4), np.uint8)
-    mip = sum(lvl.shape[0] * lvl.shape[1] for lvl in texture.mip_chain(level0)) / 256 ** 2
+    mip = sum(lvl.shape[0] * lvl.shape[1] for lvl in texels.mip_chain(level0)) / 256 ** 2
     rip = texture_beyond.ripmap_texel_count(texture_beyond.ripmap_levels(level0)) / 256 ** 2
     assert mip == pytest.approx(4 / 3, rel=1e-4)
     assert rip == pytest.approx((2 - 1 / 256) ** 2) and rip == pytest.approx(4, rel=0.01)
