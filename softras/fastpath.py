@@ -16,7 +16,8 @@ features, without the intermediate buffers:
    the corners (clip weights x source vertex values, in the pipeline's order);
 4. binning (`_bin`): the visible triangles are listed, in draw order, in every
    64x64-pixel tile their bounding box touches;
-5. `_draw_tiles`: tiles in parallel (numba prange: a pixel belongs to one tile,
+5. the tile driver (`_make_draw_tiles`, one per sample count and
+   texturing): tiles in parallel (numba prange: a pixel belongs to one tile,
    so tiles never race on the framebuffer); within a tile the triangles in
    draw order; per triangle the 8x8 blocks of its bounding box inside the
    tile with the exact early-out / early-in corner test of
@@ -184,7 +185,8 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     tiles_x = (width + TILE - 1) // TILE
     tiles_y = (height + TILE - 1) // TILE
     bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
-    _draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+    draw_tiles = _DRAW_TILES[len(offsets), material.texture is not None]
+    draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
                 offsets, positions, color, depth,
                 ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
                 tex_params, levels_flat, levels_flat.view(np.uint32), level_table, numba.get_num_threads())
@@ -614,56 +616,38 @@ def clear(color, depth, clear_bytes):
 # ----------------------------------------------------------------------------- the tile kernel
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
-def _draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                offsets, positions, color, depth, depth_func, depth_write, blend,
-                tex_params, texels, texels32, table, n_threads):
-    """Rasterize, shade and apply every binned triangle, tiles in parallel.
+def _make_draw_tiles(n_samples: int, textured: bool):
+    """The parallel tile driver compiled for one sample count (1 or 4,
+    `FAST_SAMPLES`) and textured or not, as constants (closure variables are
+    compile-time constants to numba, and part of its cache key): the compiler
+    unrolls the per-sample and per-quad loops and drops the texture code from
+    untextured draws, and a scene compiles only the variants it uses."""
 
-    color : (H, W, S, 4) uint8, depth : (H, W, S) float64, updated in place.
-    texels / texels32 : a texture's levels as bytes and as RGBA8 words.
-    Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
-    so a scene covering only part of the picture still keeps every thread busy).
-    """
-    n_tiles = bin_start.shape[0] - 1
-    for r in numba.prange(n_threads):
-        src = np.empty(4, np.int64)          # fragment bytes (ops.unorm8)
-        dst = np.empty(4, np.int64)          # stored bytes
-        out = np.empty(4, np.int64)          # blended bytes
-        passed = np.zeros(4, np.int64)       # per pixel of a quad: samples that passed the depth test
-        texel = np.empty((2, 4))             # float-weight filtering: the two levels' RGBA
-        for tile in range(r, n_tiles, n_threads):
-            _draw_tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                       offsets, positions, color, depth, depth_func, depth_write, blend,
-                       tex_params, texels, texels32, table, src, dst, out, passed, texel)
+    @numba.njit(cache=True, parallel=True, error_model="numpy")
+    def draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                   offsets, positions, color, depth, depth_func, depth_write, blend,
+                   tex_params, texels, texels32, table, n_threads):
+        """Rasterize, shade and apply every binned triangle, tiles in parallel.
 
+        color : (H, W, S, 4) uint8, depth : (H, W, S) float64, updated in place.
+        texels / texels32 : a texture's levels as bytes and as RGBA8 words.
+        Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
+        so a scene covering only part of the picture still keeps every thread busy).
+        """
+        n_tiles = bin_start.shape[0] - 1
+        for r in numba.prange(n_threads):
+            src = np.empty(4, np.int64)          # fragment bytes (ops.unorm8)
+            dst = np.empty(4, np.int64)          # stored bytes
+            out = np.empty(4, np.int64)          # blended bytes
+            passed = np.zeros(4, np.int64)       # per pixel of a quad: samples that passed the depth test
+            texel = np.empty((2, 4))             # float-weight filtering: the two levels' RGBA
+            for tile in range(r, n_tiles, n_threads):
+                _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
+                      offsets, positions, color, depth, depth_func, depth_write, blend,
+                      tex_params, texels, texels32, table, src, dst, out, passed, texel,
+                      n_samples, textured)
 
-@numba.njit(cache=True, error_model="numpy")
-def _draw_tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-               offsets, positions, color, depth, depth_func, depth_write, blend,
-               tex_params, texels, texels32, table, src, dst, out, passed, texel):
-    """`_tile` compiled for the sample count (1 or 4, `FAST_SAMPLES`) and for
-    textured or not as constants, so that the compiler unrolls the per-sample
-    and per-quad loops and drops the texture code from untextured draws."""
-    textured = tex_params[_T_ON] != 0
-    if offsets.shape[0] == 1:
-        if textured:
-            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                  offsets, positions, color, depth, depth_func, depth_write, blend,
-                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 1, True)
-        else:
-            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                  offsets, positions, color, depth, depth_func, depth_write, blend,
-                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 1, False)
-    else:
-        if textured:
-            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                  offsets, positions, color, depth, depth_func, depth_write, blend,
-                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 4, True)
-        else:
-            _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                  offsets, positions, color, depth, depth_func, depth_write, blend,
-                  tex_params, texels, texels32, table, src, dst, out, passed, texel, 4, False)
+    return draw_tiles
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -873,3 +857,8 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                                     blend_unorm8(blend, src, dst, out)
                                     for c in range(4):
                                         color[py, px, s, c] = np.uint8(out[c])
+
+
+# One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`).
+_DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured)
+               for n_samples in FAST_SAMPLES for textured in (False, True)}
