@@ -74,8 +74,9 @@ CULL_CODES = {"none": 0, "back": 1, "front": 2}
 FILTER_CODES = {"nearest": 0, "linear": 1}
 MIN_FILTERS = ("nearest", "linear") + texture.MIPMAP_FILTERS
 # Texture parameter vector (int64): enabled, min image filter, mag filter,
-# mip mode (0 none, 1 nearest, 2 linear), wrap s, wrap t, fixed8, levels.
-_T_ON, _T_MIN, _T_MAG, _T_MIP, _T_WS, _T_WT, _T_FIXED, _T_LEVELS = range(8)
+# mip mode (0 none, 1 nearest, 2 linear), wrap s, wrap t, fixed8, levels,
+# whether the vectorised filter applies (`_lanes_bilinear_fixed`).
+_T_ON, _T_MIN, _T_MAG, _T_MIP, _T_WS, _T_WT, _T_FIXED, _T_LEVELS, _T_VEC, _NT = range(10)
 
 # Sample counts the fast path renders (the positions are the pipeline's).
 FAST_SAMPLES = (1, 4)
@@ -174,7 +175,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     base = np.ascontiguousarray(vertex_colors * material.color)             # straight, per vertex
     corner_args = (tri_i[:, _I_SWAP], mesh.indices, source, slot, fan_weights, visible)
     colors = _corner_values(base, *corner_args, _scratch.take("colors", (n, 3, 4), np.float64))
-    tex_params = np.zeros(8, np.int64)
+    tex_params = np.zeros(_NT, np.int64)
     levels_flat, level_table = np.zeros(4, np.uint8), np.zeros((1, 3), np.int64)
     uv = np.zeros((1, 3, 2))
     if material.texture is not None:
@@ -187,7 +188,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
     draw_tiles = _DRAW_TILES[len(offsets), material.texture is not None]
     draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                offsets, positions, color, depth,
+                offsets, positions, color, color.view(np.uint32)[..., 0], depth,
                 ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
                 tex_params, levels_flat, levels_flat.view(np.uint32), level_table, numba.get_num_threads())
 
@@ -222,9 +223,16 @@ def _texture_tables(tex: texture.MipTexture, fixed_point: bool):
     mip = 0
     if tex.mipmapped:
         mip = 1 if tex.min_filter.endswith("mipmap_nearest") else 2
-    params = np.array([1, FILTER_CODES[tex.min_filter.split("_")[0]], FILTER_CODES[tex.mag_filter], mip,
-                       WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t],
-                       int(fixed_point and texture.uses_fixed_point(tex, True)), len(levels)], np.int64)
+    fixed8 = fixed_point and texture.uses_fixed_point(tex, True)
+    min_filter, mag_filter = FILTER_CODES[tex.min_filter.split("_")[0]], FILTER_CODES[tex.mag_filter]
+    h, w = levels[0].shape[:2]
+    # The vectorised filter: 8.8 bilinear on every level, wraps by mask or clamp
+    # (a power-of-two level 0 has power-of-two levels all the way down).
+    vectorised = (fixed8 and min_filter == mag_filter == FILTER_CODES["linear"]
+                  and all(mode == "clamp_to_edge" or (size & (size - 1)) == 0
+                          for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))))
+    params = np.array([1, min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t],
+                       int(fixed8), len(levels), int(vectorised)], np.int64)
     return params, flat, table
 
 
@@ -614,6 +622,27 @@ def clear(color, depth, clear_bytes):
 
 
 # ----------------------------------------------------------------------------- the tile kernel
+#
+# Textured draws are shaded per 8x8 block in "lanes": the block's covered 2x2
+# quads are listed (4 lanes per quad, up to 64), then each step runs as one
+# loop over the lanes.  The steps without branches or table look-ups (the
+# perspective weights with their six divisions, depth, texel addresses, the
+# 8.8 filter, the colour bytes) are loops that LLVM compiles to AVX2 (4 or 8
+# lanes per instruction); the depth test, the quad's level of detail, the
+# texel fetches and the framebuffer writes stay scalar.  Same operations in
+# the same order per lane, so the bits are those of the per-pixel code.
+
+LANES = 64                                   # 16 quads of an 8x8 block
+# float64 lane rows: pixel centre, perspective weights, (s, t), per level the
+# float32 scales size * 256 of s and t, the mip blend fraction, the filtered
+# texel (r, g, b, a in [0, 1]), then depth at each sample.
+_LF_CX, _LF_CY, _LF_W, _LF_S, _LF_T, _LF_SCALE, _LF_FRAC, _LF_TEX, _LF_Z = 0, 1, 2, 5, 6, 7, 11, 12, 16
+# int64 lane rows: pixel, coverage mask, depth-passed mask, per level the
+# texel word offset / width / height, mip weight (0..256), levels, image
+# filter, two levels or one, the 8 texel addresses, the 4 filter weights,
+# then the fragment's RGBA8 word.
+(_LI_PX, _LI_PY, _LI_COV, _LI_PASS, _LI_BASE, _LI_LW, _LI_LH, _LI_W8, _LI_LEVEL, _LI_IMGF, _LI_TWO,
+ _LI_ADDR, _LI_FRAC8, _LI_WORD, _NLI) = 0, 1, 2, 3, 4, 6, 8, 10, 11, 13, 14, 15, 23, 27, 28
 
 
 def _make_draw_tiles(n_samples: int, textured: bool):
@@ -625,11 +654,12 @@ def _make_draw_tiles(n_samples: int, textured: bool):
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                   offsets, positions, color, depth, depth_func, depth_write, blend,
+                   offsets, positions, color, color32, depth, depth_func, depth_write, blend,
                    tex_params, texels, texels32, table, n_threads):
         """Rasterize, shade and apply every binned triangle, tiles in parallel.
 
-        color : (H, W, S, 4) uint8, depth : (H, W, S) float64, updated in place.
+        color : (H, W, S, 4) uint8 (color32: the same memory as (H, W, S) RGBA8
+        words), depth : (H, W, S) float64, updated in place.
         texels / texels32 : a texture's levels as bytes and as RGBA8 words.
         Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
         so a scene covering only part of the picture still keeps every thread busy).
@@ -639,41 +669,46 @@ def _make_draw_tiles(n_samples: int, textured: bool):
             src = np.empty(4, np.int64)          # fragment bytes (ops.unorm8)
             dst = np.empty(4, np.int64)          # stored bytes
             out = np.empty(4, np.int64)          # blended bytes
-            passed = np.zeros(4, np.int64)       # per pixel of a quad: samples that passed the depth test
             texel = np.empty((2, 4))             # float-weight filtering: the two levels' RGBA
+            lf = np.zeros((_LF_Z + n_samples, LANES))       # textured: lane rows (see above)
+            li = np.zeros((_NLI, LANES), np.int64)
+            lu = np.zeros((8, LANES), np.uint64)             # the 8 fetched texels, spread
+            # (Grouped in tuples: CPython 3.11 passes a call with over 30
+            # arguments as *args, which numba cannot inline.)
+            buffers = (src, dst, out, texel, lf, li, lu)
             for tile in range(r, n_tiles, n_threads):
                 _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                      offsets, positions, color, depth, depth_func, depth_write, blend,
-                      tex_params, texels, texels32, table, src, dst, out, passed, texel,
-                      n_samples, textured)
+                      offsets, positions, color, color32, depth, (depth_func, depth_write, blend),
+                      (tex_params, texels, texels32, table), buffers, n_samples, textured)
 
     return draw_tiles
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-          offsets, positions, color, depth, depth_func, depth_write, blend,
-          tex_params, texels, texels32, table, src, dst, out, passed, texel, n_samples, textured):
+          offsets, positions, color, color32, depth, state, tex, buffers, n_samples, textured):
     """One 64x64 tile: its triangles in draw order; per triangle the 8x8 blocks
     of its bounding box inside the tile with the exact early-out / early-in
-    corner test of `softras.rasterize`; then per pixel (untextured) or per 2x2
-    quad (textured: blocks start at even coordinates, the quad's top-left,
-    top-right and bottom-left evaluations give the derivatives and are also
-    those pixels' own perspective weights, and the level of detail is the
-    quad's): coverage, depth test, colour, blend and write.  The per-pixel
-    arithmetic is `softras.pipeline`'s, operation for operation."""
+    corner test of `softras.rasterize`; then per pixel (untextured: coverage,
+    depth test, colour, blend, write) or per block in lanes (textured,
+    `_textured_block`).  The per-pixel arithmetic is `softras.pipeline`'s,
+    operation for operation.
+
+    state : (depth function, depth write, blend mode) codes; tex : (params,
+    texels as bytes, as RGBA8 words, level table); buffers : the thread's
+    scratch arrays (see `_make_draw_tiles`)."""
+    depth_func, depth_write, blend = state
+    src, dst, out = buffers[0], buffers[1], buffers[2]
+    lf, li = buffers[4], buffers[5]
     full_mask = (1 << n_samples) - 1
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
     write_z = depth_write and depth_func != 0
-    step = 2 if textured else 1             # quad side in pixels
-    wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
-    fixed8 = tex_params[_T_FIXED] != 0
+    step = 2 if textured else 1             # blocks start at even pixels when textured (whole quads)
     tx0 = (tile % tiles_x) * TILE
     ty0 = (tile // tiles_x) * TILE
     tx1 = min(tx0 + TILE, width) - 1
     ty1 = min(ty0 + TILE, height) - 1
-    tr = tg = tb = ta = 1.0
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
         x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
@@ -690,10 +725,6 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
         cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
         cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
         ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
-        u0 = u1 = u2 = v0 = v1 = v2 = 0.0
-        if textured:
-            u0, u1, u2 = uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]
-            v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
         x_start = max(bbox[t, 0], tx0)
         x_end = min(bbox[t, 1], tx1)
         y_start = max(bbox[t, 2], ty0)
@@ -715,148 +746,321 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                 if ((e_max0 - k0) | (e_max1 - k1) | (e_max2 - k2)) < 0:
                     continue                            # the block is outside an edge
                 all_in = ((e_min0 - k0) | (e_min1 - k1) | (e_min2 - k2)) >= 0
-                for qy in range(by & -step, by1 + 1, step):
-                    for qx in range(bx & -step, bx1 + 1, step):
-                        # Coverage, depth test and depth write of the quad's pixels.
-                        any_passed = 0
-                        for k in range(step * step):
-                            px = qx + (k & 1)
-                            py = qy + (k >> 1)
-                            p = 0
-                            if bx <= px <= bx1 and by <= py <= by1:
-                                mask = full_mask
-                                if not all_in:
-                                    mask = 0
-                                    for s in range(n_samples):
-                                        if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
-                                                    a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1,
-                                                    a2, b2, ex2, ey2, k2):
-                                            mask |= 1 << s
-                                for s in range(n_samples):
-                                    if (mask >> s) & 1:
-                                        # Depth from the plane equation, rounded to 24 bits.
-                                        zx = (px + positions[s, 0]) - x0
-                                        zy = (py + positions[s, 1]) - y0
-                                        z = z0 + dzdx * zx + dzdy * zy
-                                        z = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
-                                        if _depth_pass(depth_func, z, depth[py, px, s]):
-                                            if write_z:
-                                                depth[py, px, s] = z
-                                            p |= 1 << s
-                            passed[k] = p
-                            any_passed |= p
-                        if any_passed == 0:
-                            continue
-                        cx = qx + 0.5
-                        cy = qy + 0.5
-                        if textured:
-                            # Derivatives from the quad's top-left, top-right and
-                            # bottom-left centres (`interpolate.quad_derivatives`).
-                            wa0, wa1, wa2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx, cy)
-                            wb0, wb1, wb2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx + 1, cy)
-                            wc0, wc1, wc2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx, cy + 1)
-                            s_tl = wa0 * u0 + wa1 * u1 + wa2 * u2
-                            t_tl = wa0 * v0 + wa1 * v1 + wa2 * v2
-                            s_tr = wb0 * u0 + wb1 * u1 + wb2 * u2
-                            t_tr = wb0 * v0 + wb1 * v1 + wb2 * v2
-                            s_bl = wc0 * u0 + wc1 * u1 + wc2 * u2
-                            t_bl = wc0 * v0 + wc1 * v1 + wc2 * v2
-                            ddx_s = np.float64(np.float32(s_tr) - np.float32(s_tl))
-                            ddx_t = np.float64(np.float32(t_tr) - np.float32(t_tl))
-                            ddy_s = np.float64(np.float32(s_bl) - np.float32(s_tl))
-                            ddy_t = np.float64(np.float32(t_bl) - np.float32(t_tl))
-                            level0, level1, frac, image_filter, two = _quad_lod(
-                                table[0, 1], table[0, 2], tex_params[_T_MIP], tex_params[_T_LEVELS] - 1,
-                                tex_params[_T_MAG], tex_params[_T_MIN], ddx_s, ddx_t, ddy_s, ddy_t)
-                            n_levels = 2 if two else 1
-                            lanes = fixed8 or (image_filter == 0 and not two)
-                            w8 = np.int64(np.floor(frac * 256))
-                        for k in range(step * step):
-                            p = passed[k]
-                            if p == 0:
-                                continue
-                            px = qx + (k & 1)
-                            py = qy + (k >> 1)
-                            if not textured:
-                                w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, cx, cy)
-                            else:
-                                if k == 0:
-                                    w0, w1, w2, s_px, t_px = wa0, wa1, wa2, s_tl, t_tl
-                                elif k == 1:
-                                    w0, w1, w2, s_px, t_px = wb0, wb1, wb2, s_tr, t_tr
-                                elif k == 2:
-                                    w0, w1, w2, s_px, t_px = wc0, wc1, wc2, s_bl, t_bl
-                                else:
-                                    w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2,
-                                                             cx + 1, cy + 1)
-                                    s_px = w0 * u0 + w1 * u1 + w2 * u2
-                                    t_px = w0 * v0 + w1 * v1 + w2 * v2
-                                # `texture.sample` (gl) at (s_px, t_px) on the quad's level(s).
-                                lanes_texel = np.uint64(0)
-                                x = np.uint64(0)
-                                for lv in range(n_levels):
-                                    level = level0 if lv == 0 else level1
-                                    base, lw, lh = table[level, 0], table[level, 1], table[level, 2]
-                                    if image_filter == 0:
-                                        i = _nearest(s_px, lw, wrap_s)
-                                        jj = _nearest(t_px, lh, wrap_t)
-                                        if lanes:
-                                            x = _spread(texels32[(base >> 2) + jj * lw + i])
-                                        else:
-                                            for c in range(4):
-                                                texel[lv, c] = np.float64(texels[base + (jj * lw + i) * 4 + c])
-                                    elif lanes:
-                                        i0, i1, fa = _linear_fixed(s_px, lw, wrap_s)
-                                        j0, j1, fb = _linear_fixed(t_px, lh, wrap_t)
-                                        row0 = (base >> 2) + j0 * lw
-                                        row1 = (base >> 2) + j1 * lw
-                                        x = _lerp_lanes(fb, _lerp_lanes(fa, _spread(texels32[row0 + i0]),
-                                                                        _spread(texels32[row0 + i1])),
-                                                        _lerp_lanes(fa, _spread(texels32[row1 + i0]),
-                                                                    _spread(texels32[row1 + i1])))
-                                    else:
-                                        i0, i1, fa = _linear_float(s_px, lw, wrap_s)
-                                        j0, j1, fb = _linear_float(t_px, lh, wrap_t)
-                                        for c in range(4):
-                                            texel[lv, c] = _bilinear_float(
-                                                fa, fb, np.float64(texels[base + (j0 * lw + i0) * 4 + c]),
-                                                np.float64(texels[base + (j0 * lw + i1) * 4 + c]),
-                                                np.float64(texels[base + (j1 * lw + i0) * 4 + c]),
-                                                np.float64(texels[base + (j1 * lw + i1) * 4 + c]))
-                                    if lanes:
-                                        lanes_texel = x if lv == 0 else _lerp_lanes(w8, lanes_texel, x)
-                                if lanes:
-                                    tr = _BYTE_VALUES[_lane(lanes_texel, 0)]
-                                    tg = _BYTE_VALUES[_lane(lanes_texel, 1)]
-                                    tb = _BYTE_VALUES[_lane(lanes_texel, 2)]
-                                    ta = _BYTE_VALUES[_lane(lanes_texel, 3)]
-                                else:
-                                    if two:
-                                        for c in range(4):
-                                            texel[0, c] = texel[0, c] + frac * (texel[1, c] - texel[0, c])
-                                    tr = texel[0, 0] / 255.0
-                                    tg = texel[0, 1] / 255.0
-                                    tb = texel[0, 2] / 255.0
-                                    ta = texel[0, 3] / 255.0
-                            # The fragment colour as llvmpipe's bytes, blended
-                            # in 8-bit integers (`ops.apply_fragments`).
-                            r8, g8, b8, a8 = _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
-                                                          ca0, ca1, ca2, textured, tr, tg, tb, ta)
+                if textured:
+                    # List the block's quads with any covered sample as lanes.
+                    n = 0
+                    for qy in range(by & -2, by1 + 1, 2):
+                        for qx in range(bx & -2, bx1 + 1, 2):
+                            quad_mask = 0
+                            for k in range(4):
+                                px = qx + (k & 1)
+                                py = qy + (k >> 1)
+                                mask = 0
+                                if bx <= px <= bx1 and by <= py <= by1:
+                                    mask = full_mask
+                                    if not all_in:
+                                        mask = 0
+                                        for s in range(n_samples):
+                                            if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
+                                                        a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1,
+                                                        a2, b2, ex2, ey2, k2):
+                                                mask |= 1 << s
+                                li[_LI_PX, n + k] = px
+                                li[_LI_PY, n + k] = py
+                                li[_LI_COV, n + k] = mask
+                                lf[_LF_CX, n + k] = px + 0.5
+                                lf[_LF_CY, n + k] = py + 0.5
+                                quad_mask |= mask
+                            if quad_mask:
+                                n += 4
+                    if n:
+                        _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32,
+                                        depth_func, write_z, blend, tex, buffers, n_samples)
+                    continue
+                for py in range(by, by1 + 1):
+                    for px in range(bx, bx1 + 1):
+                        # Coverage, depth test and depth write of the pixel's samples.
+                        mask = full_mask
+                        if not all_in:
+                            mask = 0
                             for s in range(n_samples):
-                                if not (p >> s) & 1:
-                                    continue
-                                if blend == 0:
-                                    color[py, px, s, 0] = np.uint8(r8)
-                                    color[py, px, s, 1] = np.uint8(g8)
-                                    color[py, px, s, 2] = np.uint8(b8)
-                                    color[py, px, s, 3] = np.uint8(a8)
-                                else:
-                                    src[0], src[1], src[2], src[3] = r8, g8, b8, a8
-                                    for c in range(4):
-                                        dst[c] = color[py, px, s, c]
-                                    blend_unorm8(blend, src, dst, out)
-                                    for c in range(4):
-                                        color[py, px, s, c] = np.uint8(out[c])
+                                if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
+                                            a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1, a2, b2, ex2, ey2, k2):
+                                    mask |= 1 << s
+                        p = 0
+                        for s in range(n_samples):
+                            if (mask >> s) & 1:
+                                # Depth from the plane equation, rounded to 24 bits.
+                                zx = (px + positions[s, 0]) - x0
+                                zy = (py + positions[s, 1]) - y0
+                                z = z0 + dzdx * zx + dzdy * zy
+                                z = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
+                                if _depth_pass(depth_func, z, depth[py, px, s]):
+                                    if write_z:
+                                        depth[py, px, s] = z
+                                    p |= 1 << s
+                        if p == 0:
+                            continue
+                        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, px + 0.5, py + 0.5)
+                        # The fragment colour as llvmpipe's bytes, blended in
+                        # 8-bit integers (`ops.apply_fragments`).
+                        r8, g8, b8, a8 = _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
+                                                      ca0, ca1, ca2, False, 1.0, 1.0, 1.0, 1.0)
+                        _write_samples(color, py, px, p, n_samples, blend, r8, g8, b8, a8, src, dst, out)
+
+
+@numba.njit(cache=True, inline="always")
+def _write_samples(color, py, px, p, n_samples, blend, r8, g8, b8, a8, src, dst, out):
+    """Store (blend == 0) or blend (`ops.blend_unorm8`) the fragment bytes into
+    the samples of pixel (px, py) set in mask p."""
+    for s in range(n_samples):
+        if not (p >> s) & 1:
+            continue
+        if blend == 0:
+            color[py, px, s, 0] = np.uint8(r8)
+            color[py, px, s, 1] = np.uint8(g8)
+            color[py, px, s, 2] = np.uint8(b8)
+            color[py, px, s, 3] = np.uint8(a8)
+        else:
+            src[0], src[1], src[2], src[3] = r8, g8, b8, a8
+            for c in range(4):
+                dst[c] = color[py, px, s, c]
+            blend_unorm8(blend, src, dst, out)
+            for c in range(4):
+                color[py, px, s, c] = np.uint8(out[c])
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _unorm8_lane(v):
+    """`ops.unorm8` without branches (so that a loop over lanes vectorises):
+    min(v, 1) as float32 times 255, rounded half to even; NaN and v <= 0 give 0."""
+    v32 = np.float32(v)
+    c = min(v32 if v32 > 0 else np.float32(0.0), np.float32(1.0))
+    return np.int64(np.int32(np.rint(np.float64(np.float32(c * np.float32(255.0))))))
+
+
+@numba.njit(cache=True, inline="always")
+def _write_word(color, color32, py, px, p, n_samples, blend, word, src, dst, out):
+    """`_write_samples` of a fragment given as one RGBA8 word (R in the low byte):
+    a single 32-bit store per sample when not blending."""
+    if blend == 0:
+        for s in range(n_samples):
+            if (p >> s) & 1:
+                color32[py, px, s] = np.uint32(word)
+    else:
+        _write_samples(color, py, px, p, n_samples, blend, word & 255, (word >> 8) & 255, (word >> 16) & 255,
+                       (word >> 24) & 255, src, dst, out)
+
+
+@numba.njit(cache=True, inline="always")
+def _wrap_select(i, size, mode):
+    """`wrap_index` for a power-of-two size (or clamp_to_edge, any size)
+    without branches, so that a loop over lanes vectorises."""
+    repeat = i & (size - 1)
+    clamped = min(max(i, 0), size - 1)
+    m = i & (2 * size - 1)
+    mirrored = m if m < size else 2 * size - 1 - m
+    return clamped if mode == 1 else (repeat if mode == 0 else mirrored)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, depth_func, write_z, blend,
+                    tex, buffers, n_samples):
+    """Shade the n lanes (n / 4 quads, listed by `_tile` with pixel, centre and
+    coverage) of one textured triangle in one 8x8 block.
+
+    Per quad the top-left, top-right and bottom-left lanes give the texture
+    derivatives (`interpolate.quad_derivatives`) and the level of detail is
+    the quad's; every lane's own (s, t) is its pixel's.  Lanes outside the
+    triangle are the quad's helper pixels: computed, never written."""
+    tex_params, texels, texels32, table = tex
+    src, dst, out, texel, lf, li, lu = buffers
+    cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
+    cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
+    cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
+    ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
+    x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
+    y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
+    iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
+    z0, dzdx, dzdy = tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY]
+    u0, u1, u2 = uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]
+    v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
+    wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
+    fixed8 = tex_params[_T_FIXED] != 0
+    # Perspective weights and (s, t) at every lane's centre (vectorised).
+    for l in range(n):
+        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, lf[_LF_CX, l], lf[_LF_CY, l])
+        lf[_LF_W, l] = w0
+        lf[_LF_W + 1, l] = w1
+        lf[_LF_W + 2, l] = w2
+        lf[_LF_S, l] = w0 * u0 + w1 * u1 + w2 * u2
+        lf[_LF_T, l] = w0 * v0 + w1 * v1 + w2 * v2
+    # Depth from the plane equation at every sample, rounded to 24 bits (vectorised).
+    for s in range(n_samples):
+        ox, oy = positions[s, 0], positions[s, 1]
+        for l in range(n):
+            zx = ((lf[_LF_CX, l] - 0.5) + ox) - x0           # (px + position) - x0: cx - 0.5 is px exactly
+            zy = ((lf[_LF_CY, l] - 0.5) + oy) - y0
+            z = z0 + dzdx * zx + dzdy * zy
+            lf[_LF_Z + s, l] = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
+    # Depth test (scalar), then the level of detail of each quad with a passed sample.
+    block_passed = 0
+    for q in range(n >> 2):
+        quad_passed = 0
+        for l in range(4 * q, 4 * q + 4):
+            mask = li[_LI_COV, l]
+            p = 0
+            if mask:
+                px, py = li[_LI_PX, l], li[_LI_PY, l]
+                for s in range(n_samples):
+                    if (mask >> s) & 1:
+                        z = lf[_LF_Z + s, l]
+                        if _depth_pass(depth_func, z, depth[py, px, s]):
+                            if write_z:
+                                depth[py, px, s] = z
+                            p |= 1 << s
+            li[_LI_PASS, l] = p
+            quad_passed |= p
+        block_passed |= quad_passed
+        level0 = level1 = 0
+        frac = 0.0
+        image_filter = tex_params[_T_MAG]
+        two = False
+        if quad_passed:
+            l = 4 * q
+            s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
+            ddx_s = np.float64(np.float32(lf[_LF_S, l + 1]) - s_tl)
+            ddx_t = np.float64(np.float32(lf[_LF_T, l + 1]) - t_tl)
+            ddy_s = np.float64(np.float32(lf[_LF_S, l + 2]) - s_tl)
+            ddy_t = np.float64(np.float32(lf[_LF_T, l + 2]) - t_tl)
+            level0, level1, frac, image_filter, two = _quad_lod(
+                table[0, 1], table[0, 2], tex_params[_T_MIP], tex_params[_T_LEVELS] - 1,
+                tex_params[_T_MAG], tex_params[_T_MIN], ddx_s, ddx_t, ddy_s, ddy_t)
+        w8 = np.int64(np.floor(frac * 256)) if two else 0
+        for l in range(4 * q, 4 * q + 4):
+            for lv in range(2):
+                level = level1 if (lv == 1 and two) else level0
+                lw, lh = table[level, 1], table[level, 2]
+                li[_LI_LEVEL + lv, l] = level
+                li[_LI_BASE + lv, l] = table[level, 0] >> 2
+                li[_LI_LW + lv, l] = lw
+                li[_LI_LH + lv, l] = lh
+                lf[_LF_SCALE + 2 * lv, l] = np.float32(lw * 256)
+                lf[_LF_SCALE + 2 * lv + 1, l] = np.float32(lh * 256)
+            li[_LI_W8, l] = w8
+            li[_LI_IMGF, l] = image_filter
+            li[_LI_TWO, l] = two
+            lf[_LF_FRAC, l] = frac
+    if block_passed == 0:
+        return
+    if tex_params[_T_VEC]:
+        _lanes_bilinear_fixed(n, lf, li, lu, texels32, wrap_s, wrap_t)
+    else:
+        for l in range(n):
+            if li[_LI_PASS, l]:
+                _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8)
+    # The fragment colour as llvmpipe's bytes, one RGBA8 word per lane (vectorised) ...
+    for l in range(n):
+        w0, w1, w2 = lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l]
+        alpha = w0 * ca0 + w1 * ca1 + w2 * ca2
+        r = (w0 * cr0 + w1 * cr1 + w2 * cr2) * alpha * lf[_LF_TEX, l]
+        g = (w0 * cg0 + w1 * cg1 + w2 * cg2) * alpha * lf[_LF_TEX + 1, l]
+        b = (w0 * cb0 + w1 * cb1 + w2 * cb2) * alpha * lf[_LF_TEX + 2, l]
+        a = alpha * lf[_LF_TEX + 3, l]
+        li[_LI_WORD, l] = (_unorm8_lane(r) | (_unorm8_lane(g) << 8) | (_unorm8_lane(b) << 16)
+                           | (_unorm8_lane(a) << 24))
+    # ... blended in 8-bit integers and written (`ops.apply_fragments`).
+    for l in range(n):
+        p = li[_LI_PASS, l]
+        if p:
+            _write_word(color, color32, li[_LI_PY, l], li[_LI_PX, l], p, n_samples, blend, li[_LI_WORD, l],
+                        src, dst, out)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lanes_bilinear_fixed(n, lf, li, lu, texels32, wrap_s, wrap_t):
+    """`texture.sample` (gl, fixed8, linear image filter, power-of-two or
+    clamped wraps) of every lane on its two levels (the same level twice with
+    mip weight 0 where the quad uses one): addresses and 8.8 weights
+    (`_linear_fixed`, vectorised), the 8 texel fetches (scalar), the lane
+    lerps (vectorised).  Writes the texel as k/255 floats into the _LF_TEX rows."""
+    for lv in range(2):
+        for l in range(n):
+            lw, lh = li[_LI_LW + lv, l], li[_LI_LH + lv, l]
+            fs = np.int64(np.rint(np.float32(np.float32(lf[_LF_S, l]) * np.float32(lf[_LF_SCALE + 2 * lv, l])))) - 128
+            ft = np.int64(np.rint(np.float32(np.float32(lf[_LF_T, l]) * np.float32(lf[_LF_SCALE + 2 * lv + 1, l])))) - 128
+            li[_LI_FRAC8 + 2 * lv, l] = fs & 255
+            li[_LI_FRAC8 + 2 * lv + 1, l] = ft & 255
+            i0 = _wrap_select(fs >> 8, lw, wrap_s)
+            i1 = _wrap_select((fs >> 8) + 1, lw, wrap_s)
+            row0 = li[_LI_BASE + lv, l] + _wrap_select(ft >> 8, lh, wrap_t) * lw
+            row1 = li[_LI_BASE + lv, l] + _wrap_select((ft >> 8) + 1, lh, wrap_t) * lw
+            li[_LI_ADDR + 4 * lv, l] = row0 + i0
+            li[_LI_ADDR + 4 * lv + 1, l] = row0 + i1
+            li[_LI_ADDR + 4 * lv + 2, l] = row1 + i0
+            li[_LI_ADDR + 4 * lv + 3, l] = row1 + i1
+    for a in range(8):
+        for l in range(n):
+            lu[a, l] = _spread(texels32[li[_LI_ADDR + a, l]])
+    for l in range(n):
+        fa0, fb0, fa1, fb1 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l], li[_LI_FRAC8 + 2, l], li[_LI_FRAC8 + 3, l]
+        x = _lerp_lanes(fb0, _lerp_lanes(fa0, lu[0, l], lu[1, l]), _lerp_lanes(fa0, lu[2, l], lu[3, l]))
+        y = _lerp_lanes(fb1, _lerp_lanes(fa1, lu[4, l], lu[5, l]), _lerp_lanes(fa1, lu[6, l], lu[7, l]))
+        x = _lerp_lanes(li[_LI_W8, l], x, y)
+        for c in range(4):
+            lf[_LF_TEX + c, l] = np.float64(_lane(x, c)) / 255.0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8):
+    """`texture.sample` (gl precision) of lane l on its quad's level(s), any
+    filter and wrap (the scalar path beside `_lanes_bilinear_fixed`)."""
+    s_px, t_px = lf[_LF_S, l], lf[_LF_T, l]
+    image_filter = li[_LI_IMGF, l]
+    two = li[_LI_TWO, l] != 0
+    frac = lf[_LF_FRAC, l]
+    n_levels = 2 if two else 1
+    lanes = fixed8 or (image_filter == 0 and not two)
+    lanes_texel = np.uint64(0)
+    x = np.uint64(0)
+    for lv in range(n_levels):
+        level = li[_LI_LEVEL + lv, l]
+        base, lw, lh = table[level, 0], table[level, 1], table[level, 2]
+        if image_filter == 0:
+            i = _nearest(s_px, lw, wrap_s)
+            jj = _nearest(t_px, lh, wrap_t)
+            if lanes:
+                x = _spread(texels32[(base >> 2) + jj * lw + i])
+            else:
+                for c in range(4):
+                    texel[lv, c] = np.float64(texels[base + (jj * lw + i) * 4 + c])
+        elif lanes:
+            i0, i1, fa = _linear_fixed(s_px, lw, wrap_s)
+            j0, j1, fb = _linear_fixed(t_px, lh, wrap_t)
+            row0 = (base >> 2) + j0 * lw
+            row1 = (base >> 2) + j1 * lw
+            x = _lerp_lanes(fb, _lerp_lanes(fa, _spread(texels32[row0 + i0]), _spread(texels32[row0 + i1])),
+                            _lerp_lanes(fa, _spread(texels32[row1 + i0]), _spread(texels32[row1 + i1])))
+        else:
+            i0, i1, fa = _linear_float(s_px, lw, wrap_s)
+            j0, j1, fb = _linear_float(t_px, lh, wrap_t)
+            for c in range(4):
+                texel[lv, c] = _bilinear_float(
+                    fa, fb, np.float64(texels[base + (j0 * lw + i0) * 4 + c]),
+                    np.float64(texels[base + (j0 * lw + i1) * 4 + c]),
+                    np.float64(texels[base + (j1 * lw + i0) * 4 + c]),
+                    np.float64(texels[base + (j1 * lw + i1) * 4 + c]))
+        if lanes:
+            lanes_texel = x if lv == 0 else _lerp_lanes(li[_LI_W8, l], lanes_texel, x)
+    if lanes:
+        for c in range(4):
+            lf[_LF_TEX + c, l] = _BYTE_VALUES[_lane(lanes_texel, c)]
+    else:
+        if two:
+            for c in range(4):
+                texel[0, c] = texel[0, c] + frac * (texel[1, c] - texel[0, c])
+        for c in range(4):
+            lf[_LF_TEX + c, l] = texel[0, c] / 255.0
 
 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`).

@@ -62,15 +62,27 @@ DEPTHS = ["less", "lequal", "equal", "greater", "gequal", "notequal", "always", 
 BLENDS = ["none", "over", "over_straight", "add", "subtract", "reverse_subtract", "min", "max"]
 
 
-def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: int = 75) -> dict:
+def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: int = 75,
+                 vectorised: bool = False) -> dict:
     """Overlapping random triangles in clip space (some crossing the frustum, w
-    from near 0 to 3), random colours with alpha, per-node depth / blend / cull."""
+    from near 0 to 3), random colours with alpha, per-node depth / blend / cull.
+    vectorised: textures that the fast path filters in lanes (`_lanes_bilinear_fixed`:
+    linear image filters, power-of-two or clamped sizes, both fixed-point wraps),
+    uv up to +-60."""
     rng = np.random.default_rng(seed)
     nodes = []
     filters = ["nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
                "nearest_mipmap_linear", "linear_mipmap_linear"]
     textures = {}
-    if textured:
+    if vectorised:
+        for k, (size, wrap_s, wrap_t) in enumerate([([16, 16], "repeat", "repeat"),
+                                                    ([13, 7], "clamp_to_edge", "clamp_to_edge"),
+                                                    ([32, 8], "repeat", "clamp_to_edge"),
+                                                    ([8, 32], "clamp_to_edge", "repeat")]):
+            textures[f"t{k}"] = {"procedural": "noise" if k % 2 else "checker", "size": size,
+                                 "wrap_s": wrap_s, "wrap_t": wrap_t, "mag_filter": "linear",
+                                 "min_filter": ["linear", "linear_mipmap_nearest", "linear_mipmap_linear"][(seed + k) % 3]}
+    elif textured:
         for k, (wrap_s, wrap_t) in enumerate([("repeat", "repeat"), ("clamp_to_edge", "mirrored_repeat"),
                                               ("mirrored_repeat", "clamp_to_edge"), ("repeat", "clamp_to_edge")]):
             textures[f"t{k}"] = {"procedural": "noise" if k % 2 else "checker", "size": [[16, 16], [13, 7],
@@ -89,7 +101,10 @@ def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: 
                 "depth_write": bool(rng.integers(2)),
                 "blend": BLENDS[int(rng.integers(len(BLENDS)))],
                 "cull": ["none", "back", "front"][int(rng.integers(3))]}
-        if textured:
+        if vectorised:
+            mesh["uvs"] = (rng.uniform(-2, 3, size=(3 * n, 2)) * [[1], [20]][k % 2]).tolist()
+            node["material"] = {"texture": f"t{int(rng.integers(4))}"}
+        elif textured:
             mesh["uvs"] = rng.uniform(-2, 3, size=(3 * n, 2)).tolist()
             node["material"] = {"texture": f"t{int(rng.integers(4))}"}
         nodes.append(node)
@@ -115,6 +130,18 @@ def test_random_textured_scenes_are_bit_identical(seed, fixed_point):
                 f"random textured scene seed {100 + seed}, fixed point {fixed_point}")
 
 
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("samples", [1, 4])
+def test_random_lane_filtered_scenes_are_bit_identical(seed, samples):
+    """The vectorised filter path (`fastpath._lanes_bilinear_fixed`) with both of
+    llvmpipe's fixed-point wraps (mirrored_repeat filters in float: the scalar path)."""
+    scene = softras.load_scene(random_scene(200 + seed, vectorised=True))
+    for name, tex in scene.textures.items():
+        params = fastpath.texture_tables(softras.texture.prepare(tex), True)[0]
+        assert params[fastpath._T_VEC] == 1, name
+    assert_same(*both_paths(scene, samples=samples), f"random lane-filtered scene seed {200 + seed}")
+
+
 def test_random_coverage_scenes_are_bit_identical():
     """The piglit-style coverage scenes of tests/test_random_triangles.py."""
     from test_random_triangles import coverage_scene, random_triangles
@@ -132,6 +159,17 @@ def test_bench_grid_is_bit_identical():
 
 
 # ----------------------------------------------------------------------------- kernel pieces
+
+
+def test_branch_free_wrap_equals_wrap_index():
+    """`_wrap_select` (lanes) = `texture.wrap_index` for power-of-two sizes in
+    every mode, and for any size with clamp_to_edge."""
+    from softras.texture import WRAP_CODES, wrap_index
+    indices = list(range(-70, 70)) + [-2**40 - 3, 2**40 + 5, -2**62, 2**62 - 1]
+    for mode in WRAP_CODES.values():
+        for size in (1, 2, 4, 8, 64, 4096) + ((3, 7, 13, 100) if mode == WRAP_CODES["clamp_to_edge"] else ()):
+            for i in indices:
+                assert fastpath._wrap_select(i, size, mode) == wrap_index(i, size, mode), (i, size, mode)
 
 
 def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
