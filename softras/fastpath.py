@@ -162,11 +162,12 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     if len(source) == 0:
         return
     n = len(source)
+    n_threads = numba.get_num_threads()
     tri_f = _scratch.take("tri_f", (n, _NF), np.float64)
     tri_i = _scratch.take("tri_i", (n, _NI), np.int64)
     bbox = _scratch.take("bbox", (n, 4), np.int64)
     _setup(clip_pos, mesh.indices, source, slot, fan_clip, fan_weights,
-           width, height, CULL_CODES[draw.cull], offsets, SUBPIXEL_ONE, tri_f, tri_i, bbox)
+           width, height, CULL_CODES[draw.cull], offsets, SUBPIXEL_ONE, tri_f, tri_i, bbox, n_threads)
     visible = np.flatnonzero(tri_i[:, _I_VIS])
     if len(visible) == 0:
         return
@@ -190,7 +191,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
                 offsets, positions, color, color.view(np.uint32)[..., 0], depth,
                 ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
-                tex_params, levels_flat, levels_flat.view(np.uint32), level_table, numba.get_num_threads())
+                tex_params, levels_flat, levels_flat.view(np.uint32), level_table, n_threads)
 
 
 _tables_cache: dict = {}
@@ -237,6 +238,7 @@ def _texture_tables(tex: texture.MipTexture, fixed_point: bool):
 
 
 SUBPIXEL_ONE = 256
+PARALLEL_SETUP = 4096      # triangles from which `_setup` runs in parallel chunks
 
 
 class _Scratch(threading.local):
@@ -274,9 +276,9 @@ def scratch_nbytes() -> int:
 # ----------------------------------------------------------------------------- setup
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
-           tri_f, tri_i, bbox):
+           tri_f, tri_i, bbox, n_threads):
     """`softras.setup.setup_triangles` (gl precision) and the depth plane of
     `softras.interpolate.depth_at_samples`, for the clipped triangles listed
     by `softras.clip.triangle_list_gl` (source, slot, fan_clip, fan_weights).
@@ -289,88 +291,93 @@ def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height
     n = source.shape[0]
     sx = np.array([width / 2.0, height / 2.0, 0.5])
     sx32 = sx.astype(np.float32)
-    wx = np.empty(3)
-    wy = np.empty(3)
-    wz = np.empty(3)
-    iw = np.empty(3)
-    win = np.empty(3)
-    c = np.empty(4)
-    rx = np.empty(3, np.int64)
-    ry = np.empty(3, np.int64)
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
-    for t in range(n):
-        tri_i[t, _I_VIS] = 0
-        tri_i[t, _I_SWAP] = 0
-        for k in range(3):
-            f = slot[t]
-            if f < 0:
-                v = indices[source[t], k]
-                c[0], c[1], c[2], c[3] = clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3]
-                fused = True
-            else:
-                c[0], c[1], c[2], c[3] = fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2], fan_clip[f, k, 3]
-                # A vertex made by the clipper has no weight exactly 1 (clip.generated).
-                fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
-            oow = np.float32(1.0) / np.float32(c[3])
-            for j in range(3):
-                p = np.float64(np.float32(c[j]) * oow)
-                if fused:
-                    win[j] = np.float64(np.float32(p * sx[j] + sx[j]))
+    # Chunks of triangles in parallel (each with its own small arrays); one
+    # chunk below PARALLEL_SETUP triangles, where waking threads costs more.
+    n_chunks = 1 if n < PARALLEL_SETUP else 4 * n_threads
+    for chunk in numba.prange(n_chunks):
+        wx = np.empty(3)
+        wy = np.empty(3)
+        wz = np.empty(3)
+        iw = np.empty(3)
+        win = np.empty(3)
+        c = np.empty(4)
+        rx = np.empty(3, np.int64)
+        ry = np.empty(3, np.int64)
+        for t in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
+            tri_i[t, _I_VIS] = 0
+            tri_i[t, _I_SWAP] = 0
+            for k in range(3):
+                f = slot[t]
+                if f < 0:
+                    v = indices[source[t], k]
+                    c[0], c[1], c[2], c[3] = clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3]
+                    fused = True
                 else:
-                    win[j] = np.float64(np.float32(np.float32(p * sx[j]) + sx32[j]))
-            wx[k], wy[k], wz[k], iw[k] = win[0], win[1], win[2], np.float64(oow)
-            rx[k] = np.int64(np.rint((np.float32(win[0]) - np.float32(0.5)) * np.float32(256.0)))
-            ry[k] = np.int64(np.rint((np.float32(win[1]) - np.float32(0.5)) * np.float32(256.0)))
-        area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
-        front = area > 0
-        if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
-            continue
-        if not front:                           # swap corners 0 and 1 -> counter-clockwise
-            wx[0], wx[1] = wx[1], wx[0]
-            wy[0], wy[1] = wy[1], wy[0]
-            wz[0], wz[1] = wz[1], wz[0]
-            iw[0], iw[1] = iw[1], iw[0]
-            rx[0], rx[1] = rx[1], rx[0]
-            ry[0], ry[1] = ry[1], ry[0]
-            tri_i[t, _I_SWAP] = 1
-        # Bounding box in pixels, as setup_triangles computes it.
-        x_lo = np.ceil((min(rx[0], min(rx[1], rx[2])) - max_ox) / unit)
-        x_hi = np.floor((max(rx[0], max(rx[1], rx[2])) - min_ox) / unit)
-        y_lo = np.ceil((min(ry[0], min(ry[1], ry[2])) - max_oy) / unit)
-        y_hi = np.floor((max(ry[0], max(ry[1], ry[2])) - min_oy) / unit)
-        b0 = max(np.int64(min(max(x_lo, -1.0), float(width))), 0)
-        b1 = min(np.int64(min(max(x_hi, -1.0), float(width))), width - 1)
-        b2 = max(np.int64(min(max(y_lo, -1.0), float(height))), 0)
-        b3 = min(np.int64(min(max(y_hi, -1.0), float(height))), height - 1)
-        if b0 > b1 or b2 > b3:
-            continue
-        bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
-        for i in range(3):
-            j = (i + 1) % 3
-            x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
-            sign = 1
-            if x0 > x1 or (x0 == x1 and y0 > y1):
-                x0, y0, x1, y1 = x1, y1, x0, y0
-                sign = -1
-            a = (y0 - y1) * sign
-            b = (x1 - x0) * sign
-            tri_i[t, _I_A + i] = a
-            tri_i[t, _I_B + i] = b
-            tri_i[t, _I_X0 + i] = x0
-            tri_i[t, _I_Y0 + i] = y0
-            tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
-        tri_i[t, _I_VIS] = 1
-        for k in range(3):
-            tri_f[t, _F_X + k] = wx[k]
-            tri_f[t, _F_Y + k] = wy[k]
-            tri_f[t, _F_Z + k] = wz[k]
-            tri_f[t, _F_W + k] = iw[k]
-        dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
-        dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
-        det = dx1 * dy2 - dx2 * dy1
-        tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
-        tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
+                    c[0], c[1], c[2], c[3] = (fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2],
+                                              fan_clip[f, k, 3])
+                    # A vertex made by the clipper has no weight exactly 1 (clip.generated).
+                    fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
+                oow = np.float32(1.0) / np.float32(c[3])
+                for j in range(3):
+                    p = np.float64(np.float32(c[j]) * oow)
+                    if fused:
+                        win[j] = np.float64(np.float32(p * sx[j] + sx[j]))
+                    else:
+                        win[j] = np.float64(np.float32(np.float32(p * sx[j]) + sx32[j]))
+                wx[k], wy[k], wz[k], iw[k] = win[0], win[1], win[2], np.float64(oow)
+                rx[k] = np.int64(np.rint((np.float32(win[0]) - np.float32(0.5)) * np.float32(256.0)))
+                ry[k] = np.int64(np.rint((np.float32(win[1]) - np.float32(0.5)) * np.float32(256.0)))
+            area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
+            front = area > 0
+            if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
+                continue
+            if not front:                           # swap corners 0 and 1 -> counter-clockwise
+                wx[0], wx[1] = wx[1], wx[0]
+                wy[0], wy[1] = wy[1], wy[0]
+                wz[0], wz[1] = wz[1], wz[0]
+                iw[0], iw[1] = iw[1], iw[0]
+                rx[0], rx[1] = rx[1], rx[0]
+                ry[0], ry[1] = ry[1], ry[0]
+                tri_i[t, _I_SWAP] = 1
+            # Bounding box in pixels, as setup_triangles computes it.
+            x_lo = np.ceil((min(rx[0], min(rx[1], rx[2])) - max_ox) / unit)
+            x_hi = np.floor((max(rx[0], max(rx[1], rx[2])) - min_ox) / unit)
+            y_lo = np.ceil((min(ry[0], min(ry[1], ry[2])) - max_oy) / unit)
+            y_hi = np.floor((max(ry[0], max(ry[1], ry[2])) - min_oy) / unit)
+            b0 = max(np.int64(min(max(x_lo, -1.0), float(width))), 0)
+            b1 = min(np.int64(min(max(x_hi, -1.0), float(width))), width - 1)
+            b2 = max(np.int64(min(max(y_lo, -1.0), float(height))), 0)
+            b3 = min(np.int64(min(max(y_hi, -1.0), float(height))), height - 1)
+            if b0 > b1 or b2 > b3:
+                continue
+            bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
+            for i in range(3):
+                j = (i + 1) % 3
+                x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
+                sign = 1
+                if x0 > x1 or (x0 == x1 and y0 > y1):
+                    x0, y0, x1, y1 = x1, y1, x0, y0
+                    sign = -1
+                a = (y0 - y1) * sign
+                b = (x1 - x0) * sign
+                tri_i[t, _I_A + i] = a
+                tri_i[t, _I_B + i] = b
+                tri_i[t, _I_X0 + i] = x0
+                tri_i[t, _I_Y0 + i] = y0
+                tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
+            tri_i[t, _I_VIS] = 1
+            for k in range(3):
+                tri_f[t, _F_X + k] = wx[k]
+                tri_f[t, _F_Y + k] = wy[k]
+                tri_f[t, _F_Z + k] = wz[k]
+                tri_f[t, _F_W + k] = iw[k]
+            dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
+            dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
+            det = dx1 * dy2 - dx2 * dy1
+            tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
+            tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
 
 
 @numba.njit(cache=True)
@@ -987,8 +994,9 @@ def _lanes_bilinear_fixed(n, lf, li, lu, texels32, wrap_s, wrap_t):
     for lv in range(2):
         for l in range(n):
             lw, lh = li[_LI_LW + lv, l], li[_LI_LH + lv, l]
-            fs = np.int64(np.rint(np.float32(np.float32(lf[_LF_S, l]) * np.float32(lf[_LF_SCALE + 2 * lv, l])))) - 128
-            ft = np.int64(np.rint(np.float32(np.float32(lf[_LF_T, l]) * np.float32(lf[_LF_SCALE + 2 * lv + 1, l])))) - 128
+            scale_s, scale_t = np.float32(lf[_LF_SCALE + 2 * lv, l]), np.float32(lf[_LF_SCALE + 2 * lv + 1, l])
+            fs = np.int64(np.rint(np.float32(np.float32(lf[_LF_S, l]) * scale_s))) - 128
+            ft = np.int64(np.rint(np.float32(np.float32(lf[_LF_T, l]) * scale_t))) - 128
             li[_LI_FRAC8 + 2 * lv, l] = fs & 255
             li[_LI_FRAC8 + 2 * lv + 1, l] = ft & 255
             i0 = _wrap_select(fs >> 8, lw, wrap_s)
