@@ -58,6 +58,11 @@ def test_measure_reports_every_level_with_zero_error_for_the_truth_level():
     assert all(r.seconds > 0 and r.ratio == pytest.approx(r.seconds / r.glref_seconds) for r in rows)
     assert all(r.peak_mib > 0 and r.rss_mib > 0 for r in rows)
     assert rows[0].mtri_per_s == pytest.approx(32 / rows[0].seconds / 1e6)
+    # The gl level is also timed from the scene file (loading included), the others not.
+    assert rows[0].file_seconds > 0 and rows[0].glref_file_seconds > 0
+    assert rows[0].file_ratio == pytest.approx(rows[0].file_seconds / rows[0].glref_file_seconds)
+    assert rows[1].file_seconds is None and "from file" not in bench.format_row(rows[1])
+    assert "from file" in bench.format_row(rows[0])
 
 
 @pytest.mark.gl
