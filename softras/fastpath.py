@@ -23,8 +23,10 @@ features, without the intermediate buffers:
    tile with the exact early-out / early-in corner test of
    `softras.rasterize`; per covered pixel, at once: depth at each sample
    (plane equation, 24-bit rounding), depth test, perspective-correct
-   colour (and texture coordinates, per-quad derivatives and the texture
-   sample), blend, RGBA8 rounding and the write.  No fragment list exists.
+   colour, blend, RGBA8 rounding and the write.  Textured draws do the same
+   per block in lanes (`_textured_block`: the block's covered 2x2 quads,
+   with per-quad derivatives and level of detail), so that the arithmetic
+   compiles to SIMD loops.  No fragment list exists.
 
 The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes (``(H, W, S, 4) uint8``; byte k stands for the pipeline's float k/255)
@@ -276,108 +278,128 @@ def scratch_nbytes() -> int:
 # ----------------------------------------------------------------------------- setup
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
 def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
            tri_f, tri_i, bbox, n_threads):
-    """`softras.setup.setup_triangles` (gl precision) and the depth plane of
-    `softras.interpolate.depth_at_samples`, for the clipped triangles listed
-    by `softras.clip.triangle_list_gl` (source, slot, fan_clip, fan_weights).
+    """`_setup_chunks` in one chunk, or in parallel chunks from PARALLEL_SETUP
+    triangles (a parallel region costs ~0.4 ms of thread wake-up)."""
+    args = (clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
+            tri_f, tri_i, bbox)
+    if len(source) < PARALLEL_SETUP:
+        _setup_chunks_serial(*args, 1)
+    else:
+        _setup_chunks_parallel(*args, 4 * n_threads)
 
-    Fills tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts at the top
-    of the module) and bbox (T, 4) int64 (x0, x1, y0, y1 inclusive); the
-    triangles that the pipeline drops (zero area, culled, empty box) have
-    tri_i[:, _I_VIS] == 0 and their other entries undefined.
-    """
-    n = source.shape[0]
-    sx = np.array([width / 2.0, height / 2.0, 0.5])
-    sx32 = sx.astype(np.float32)
-    min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
-    min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
-    # Chunks of triangles in parallel (each with its own small arrays); one
-    # chunk below PARALLEL_SETUP triangles, where waking threads costs more.
-    n_chunks = 1 if n < PARALLEL_SETUP else 4 * n_threads
-    for chunk in numba.prange(n_chunks):
-        wx = np.empty(3)
-        wy = np.empty(3)
-        wz = np.empty(3)
-        iw = np.empty(3)
-        win = np.empty(3)
-        c = np.empty(4)
-        rx = np.empty(3, np.int64)
-        ry = np.empty(3, np.int64)
-        for t in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
-            tri_i[t, _I_VIS] = 0
-            tri_i[t, _I_SWAP] = 0
-            for k in range(3):
-                f = slot[t]
-                if f < 0:
-                    v = indices[source[t], k]
-                    c[0], c[1], c[2], c[3] = clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3]
-                    fused = True
-                else:
-                    c[0], c[1], c[2], c[3] = (fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2],
-                                              fan_clip[f, k, 3])
-                    # A vertex made by the clipper has no weight exactly 1 (clip.generated).
-                    fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
-                oow = np.float32(1.0) / np.float32(c[3])
-                for j in range(3):
-                    p = np.float64(np.float32(c[j]) * oow)
-                    if fused:
-                        win[j] = np.float64(np.float32(p * sx[j] + sx[j]))
+
+def _make_setup(parallel: bool):
+    """The set-up kernel, serial or over parallel chunks (`parallel` is a
+    closure constant: part of numba's cache key, so the two never mix)."""
+
+    @numba.njit(cache=True, parallel=parallel, error_model="numpy")
+    def _setup_chunks(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
+                      tri_f, tri_i, bbox, n_chunks):
+        """`softras.setup.setup_triangles` (gl precision) and the depth plane of
+        `softras.interpolate.depth_at_samples`, for the clipped triangles listed
+        by `softras.clip.triangle_list_gl` (source, slot, fan_clip, fan_weights).
+
+        Fills tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts at the top
+        of the module) and bbox (T, 4) int64 (x0, x1, y0, y1 inclusive); the
+        triangles that the pipeline drops (zero area, culled, empty box) have
+        tri_i[:, _I_VIS] == 0 and their other entries undefined.
+        """
+        n = source.shape[0]
+        n_chunks = n_chunks if parallel else 1
+        sx = np.array([width / 2.0, height / 2.0, 0.5])
+        sx32 = sx.astype(np.float32)
+        min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
+        min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
+        for chunk in numba.prange(n_chunks):            # (each chunk with its own small arrays)
+            wx = np.empty(3)
+            wy = np.empty(3)
+            wz = np.empty(3)
+            iw = np.empty(3)
+            win = np.empty(3)
+            c = np.empty(4)
+            rx = np.empty(3, np.int64)
+            ry = np.empty(3, np.int64)
+            for t in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
+                tri_i[t, _I_VIS] = 0
+                tri_i[t, _I_SWAP] = 0
+                for k in range(3):
+                    f = slot[t]
+                    if f < 0:
+                        v = indices[source[t], k]
+                        c[0], c[1], c[2], c[3] = clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3]
+                        fused = True
                     else:
-                        win[j] = np.float64(np.float32(np.float32(p * sx[j]) + sx32[j]))
-                wx[k], wy[k], wz[k], iw[k] = win[0], win[1], win[2], np.float64(oow)
-                rx[k] = np.int64(np.rint((np.float32(win[0]) - np.float32(0.5)) * np.float32(256.0)))
-                ry[k] = np.int64(np.rint((np.float32(win[1]) - np.float32(0.5)) * np.float32(256.0)))
-            area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
-            front = area > 0
-            if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
-                continue
-            if not front:                           # swap corners 0 and 1 -> counter-clockwise
-                wx[0], wx[1] = wx[1], wx[0]
-                wy[0], wy[1] = wy[1], wy[0]
-                wz[0], wz[1] = wz[1], wz[0]
-                iw[0], iw[1] = iw[1], iw[0]
-                rx[0], rx[1] = rx[1], rx[0]
-                ry[0], ry[1] = ry[1], ry[0]
-                tri_i[t, _I_SWAP] = 1
-            # Bounding box in pixels, as setup_triangles computes it.
-            x_lo = np.ceil((min(rx[0], min(rx[1], rx[2])) - max_ox) / unit)
-            x_hi = np.floor((max(rx[0], max(rx[1], rx[2])) - min_ox) / unit)
-            y_lo = np.ceil((min(ry[0], min(ry[1], ry[2])) - max_oy) / unit)
-            y_hi = np.floor((max(ry[0], max(ry[1], ry[2])) - min_oy) / unit)
-            b0 = max(np.int64(min(max(x_lo, -1.0), float(width))), 0)
-            b1 = min(np.int64(min(max(x_hi, -1.0), float(width))), width - 1)
-            b2 = max(np.int64(min(max(y_lo, -1.0), float(height))), 0)
-            b3 = min(np.int64(min(max(y_hi, -1.0), float(height))), height - 1)
-            if b0 > b1 or b2 > b3:
-                continue
-            bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
-            for i in range(3):
-                j = (i + 1) % 3
-                x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
-                sign = 1
-                if x0 > x1 or (x0 == x1 and y0 > y1):
-                    x0, y0, x1, y1 = x1, y1, x0, y0
-                    sign = -1
-                a = (y0 - y1) * sign
-                b = (x1 - x0) * sign
-                tri_i[t, _I_A + i] = a
-                tri_i[t, _I_B + i] = b
-                tri_i[t, _I_X0 + i] = x0
-                tri_i[t, _I_Y0 + i] = y0
-                tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
-            tri_i[t, _I_VIS] = 1
-            for k in range(3):
-                tri_f[t, _F_X + k] = wx[k]
-                tri_f[t, _F_Y + k] = wy[k]
-                tri_f[t, _F_Z + k] = wz[k]
-                tri_f[t, _F_W + k] = iw[k]
-            dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
-            dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
-            det = dx1 * dy2 - dx2 * dy1
-            tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
-            tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
+                        c[0], c[1], c[2], c[3] = (fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2],
+                                                  fan_clip[f, k, 3])
+                        # A vertex made by the clipper has no weight exactly 1 (clip.generated).
+                        fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
+                    oow = np.float32(1.0) / np.float32(c[3])
+                    for j in range(3):
+                        p = np.float64(np.float32(c[j]) * oow)
+                        if fused:
+                            win[j] = np.float64(np.float32(p * sx[j] + sx[j]))
+                        else:
+                            win[j] = np.float64(np.float32(np.float32(p * sx[j]) + sx32[j]))
+                    wx[k], wy[k], wz[k], iw[k] = win[0], win[1], win[2], np.float64(oow)
+                    rx[k] = np.int64(np.rint((np.float32(win[0]) - np.float32(0.5)) * np.float32(256.0)))
+                    ry[k] = np.int64(np.rint((np.float32(win[1]) - np.float32(0.5)) * np.float32(256.0)))
+                area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
+                front = area > 0
+                if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
+                    continue
+                if not front:                           # swap corners 0 and 1 -> counter-clockwise
+                    wx[0], wx[1] = wx[1], wx[0]
+                    wy[0], wy[1] = wy[1], wy[0]
+                    wz[0], wz[1] = wz[1], wz[0]
+                    iw[0], iw[1] = iw[1], iw[0]
+                    rx[0], rx[1] = rx[1], rx[0]
+                    ry[0], ry[1] = ry[1], ry[0]
+                    tri_i[t, _I_SWAP] = 1
+                # Bounding box in pixels, as setup_triangles computes it.
+                x_lo = np.ceil((min(rx[0], min(rx[1], rx[2])) - max_ox) / unit)
+                x_hi = np.floor((max(rx[0], max(rx[1], rx[2])) - min_ox) / unit)
+                y_lo = np.ceil((min(ry[0], min(ry[1], ry[2])) - max_oy) / unit)
+                y_hi = np.floor((max(ry[0], max(ry[1], ry[2])) - min_oy) / unit)
+                b0 = max(np.int64(min(max(x_lo, -1.0), float(width))), 0)
+                b1 = min(np.int64(min(max(x_hi, -1.0), float(width))), width - 1)
+                b2 = max(np.int64(min(max(y_lo, -1.0), float(height))), 0)
+                b3 = min(np.int64(min(max(y_hi, -1.0), float(height))), height - 1)
+                if b0 > b1 or b2 > b3:
+                    continue
+                bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
+                for i in range(3):
+                    j = (i + 1) % 3
+                    x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
+                    sign = 1
+                    if x0 > x1 or (x0 == x1 and y0 > y1):
+                        x0, y0, x1, y1 = x1, y1, x0, y0
+                        sign = -1
+                    a = (y0 - y1) * sign
+                    b = (x1 - x0) * sign
+                    tri_i[t, _I_A + i] = a
+                    tri_i[t, _I_B + i] = b
+                    tri_i[t, _I_X0 + i] = x0
+                    tri_i[t, _I_Y0 + i] = y0
+                    tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
+                tri_i[t, _I_VIS] = 1
+                for k in range(3):
+                    tri_f[t, _F_X + k] = wx[k]
+                    tri_f[t, _F_Y + k] = wy[k]
+                    tri_f[t, _F_Z + k] = wz[k]
+                    tri_f[t, _F_W + k] = iw[k]
+                dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
+                dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
+                det = dx1 * dy2 - dx2 * dy1
+                tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
+                tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
+
+    return _setup_chunks
+
+
+_setup_chunks_serial = _make_setup(False)
+_setup_chunks_parallel = _make_setup(True)
 
 
 @numba.njit(cache=True)
