@@ -279,16 +279,15 @@ def _file_times(scene_dict: dict, options: dict, runs: int) -> tuple[float, floa
     try:
         with os.fdopen(handle, "w") as out:
             json.dump(scene_dict, out)
-        soft = lambda: softras.render(softras.load_scene(path), **options)              # noqa: E731
-        gl = lambda: softras.render(softras.load_scene(path), backend="gl")             # noqa: E731
-        soft(), gl()                                                                    # warm
-        times = {soft: [], gl: []}
-        for _ in range(runs):
-            for fn in (soft, gl):
+        backends = {"soft": options, "gl": {"backend": "gl"}}
+        times = {name: [] for name in backends}
+        for run in range(runs + 1):                     # run 0 warms
+            for name, render_options in backends.items():
                 start = time.perf_counter()
-                fn()
-                times[fn].append(time.perf_counter() - start)
-        return statistics.median(times[soft]), statistics.median(times[gl])
+                softras.render(softras.load_scene(path), **render_options)
+                if run:
+                    times[name].append(time.perf_counter() - start)
+        return statistics.median(times["soft"]), statistics.median(times["gl"])
     finally:
         os.unlink(path)
 

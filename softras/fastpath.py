@@ -498,18 +498,16 @@ def _edge_range(a, b, ex, ey, x_lo, x_hi, y_lo, y_hi):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2,
-                 textured, tr, tg, tb, ta):
-    """fragment.shade_unlit (premultiplied perspective colour x texel) as the
-    bytes llvmpipe converts the fragment colour to (`ops.unorm8`)."""
+def _shade_word(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2, tr, tg, tb, ta):
+    """fragment.shade_unlit (premultiplied perspective colour x texel; texel 1
+    when untextured, which leaves every value as it is) as the bytes llvmpipe
+    converts the fragment colour to (`ops.unorm8`), packed in one RGBA8 word
+    (R in the low byte)."""
     alpha = w0 * ca0 + w1 * ca1 + w2 * ca2
-    r = (w0 * cr0 + w1 * cr1 + w2 * cr2) * alpha
-    g = (w0 * cg0 + w1 * cg1 + w2 * cg2) * alpha
-    b = (w0 * cb0 + w1 * cb1 + w2 * cb2) * alpha
-    a = alpha
-    if textured:
-        r, g, b, a = r * tr, g * tg, b * tb, a * ta
-    return unorm8(r), unorm8(g), unorm8(b), unorm8(a)
+    r = (w0 * cr0 + w1 * cr1 + w2 * cr2) * alpha * tr
+    g = (w0 * cg0 + w1 * cg1 + w2 * cg2) * alpha * tg
+    b = (w0 * cb0 + w1 * cb1 + w2 * cb2) * alpha * tb
+    return unorm8(r) | (unorm8(g) << 8) | (unorm8(b) << 16) | (unorm8(alpha * ta) << 24)
 
 
 @numba.njit(cache=True, inline="always")
@@ -833,52 +831,28 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                         w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, px + 0.5, py + 0.5)
                         # The fragment colour as llvmpipe's bytes, blended in
                         # 8-bit integers (`ops.apply_fragments`).
-                        r8, g8, b8, a8 = _shade_bytes(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
-                                                      ca0, ca1, ca2, False, 1.0, 1.0, 1.0, 1.0)
-                        _write_samples(color, py, px, p, n_samples, blend, r8, g8, b8, a8, src, dst, out)
-
-
-@numba.njit(cache=True, inline="always")
-def _write_samples(color, py, px, p, n_samples, blend, r8, g8, b8, a8, src, dst, out):
-    """Store (blend == 0) or blend (`ops.blend_unorm8`) the fragment bytes into
-    the samples of pixel (px, py) set in mask p."""
-    for s in range(n_samples):
-        if not (p >> s) & 1:
-            continue
-        if blend == 0:
-            color[py, px, s, 0] = np.uint8(r8)
-            color[py, px, s, 1] = np.uint8(g8)
-            color[py, px, s, 2] = np.uint8(b8)
-            color[py, px, s, 3] = np.uint8(a8)
-        else:
-            src[0], src[1], src[2], src[3] = r8, g8, b8, a8
-            for c in range(4):
-                dst[c] = color[py, px, s, c]
-            blend_unorm8(blend, src, dst, out)
-            for c in range(4):
-                color[py, px, s, c] = np.uint8(out[c])
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _unorm8_lane(v):
-    """`ops.unorm8` without branches (so that a loop over lanes vectorises):
-    min(v, 1) as float32 times 255, rounded half to even; NaN and v <= 0 give 0."""
-    v32 = np.float32(v)
-    c = min(v32 if v32 > 0 else np.float32(0.0), np.float32(1.0))
-    return np.int64(np.int32(np.rint(np.float64(np.float32(c * np.float32(255.0))))))
+                        word = _shade_word(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
+                                           ca0, ca1, ca2, 1.0, 1.0, 1.0, 1.0)
+                        _write_word(color, color32, py, px, p, n_samples, blend, word, src, dst, out)
 
 
 @numba.njit(cache=True, inline="always")
 def _write_word(color, color32, py, px, p, n_samples, blend, word, src, dst, out):
-    """`_write_samples` of a fragment given as one RGBA8 word (R in the low byte):
-    a single 32-bit store per sample when not blending."""
-    if blend == 0:
-        for s in range(n_samples):
-            if (p >> s) & 1:
-                color32[py, px, s] = np.uint32(word)
-    else:
-        _write_samples(color, py, px, p, n_samples, blend, word & 255, (word >> 8) & 255, (word >> 16) & 255,
-                       (word >> 24) & 255, src, dst, out)
+    """Store (blend == 0: one 32-bit store per sample) or blend (`ops.blend_unorm8`)
+    the fragment's RGBA8 word (R in the low byte) into the samples of pixel
+    (px, py) set in mask p."""
+    for s in range(n_samples):
+        if not (p >> s) & 1:
+            continue
+        if blend == 0:
+            color32[py, px, s] = np.uint32(word)
+        else:
+            for c in range(4):
+                src[c] = (word >> (8 * c)) & 255
+                dst[c] = color[py, px, s, c]
+            blend_unorm8(blend, src, dst, out)
+            for c in range(4):
+                color[py, px, s, c] = np.uint8(out[c])
 
 
 @numba.njit(cache=True, inline="always")
@@ -916,6 +890,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
     v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
     wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
     fixed8 = tex_params[_T_FIXED] != 0
+    vectorised = tex_params[_T_VEC] != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
     # Perspective weights and (s, t) at every lane's centre (vectorised).
     for l in range(n):
         w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, lf[_LF_CX, l], lf[_LF_CY, l])
@@ -966,23 +941,27 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
                 table[0, 1], table[0, 2], tex_params[_T_MIP], tex_params[_T_LEVELS] - 1,
                 tex_params[_T_MAG], tex_params[_T_MIN], ddx_s, ddx_t, ddy_s, ddy_t)
         w8 = np.int64(np.floor(frac * 256)) if two else 0
+        # The quad's levels on its lanes: what each sampler reads.
         for l in range(4 * q, 4 * q + 4):
-            for lv in range(2):
-                level = level1 if (lv == 1 and two) else level0
-                lw, lh = table[level, 1], table[level, 2]
-                li[_LI_LEVEL + lv, l] = level
-                li[_LI_BASE + lv, l] = table[level, 0] >> 2
-                li[_LI_LW + lv, l] = lw
-                li[_LI_LH + lv, l] = lh
-                lf[_LF_SCALE + 2 * lv, l] = np.float32(lw * 256)
-                lf[_LF_SCALE + 2 * lv + 1, l] = np.float32(lh * 256)
             li[_LI_W8, l] = w8
-            li[_LI_IMGF, l] = image_filter
-            li[_LI_TWO, l] = two
-            lf[_LF_FRAC, l] = frac
+            if vectorised:
+                for lv in range(2):
+                    level = level1 if (lv == 1 and two) else level0
+                    lw, lh = table[level, 1], table[level, 2]
+                    li[_LI_BASE + lv, l] = table[level, 0] >> 2
+                    li[_LI_LW + lv, l] = lw
+                    li[_LI_LH + lv, l] = lh
+                    lf[_LF_SCALE + 2 * lv, l] = np.float32(lw * 256)
+                    lf[_LF_SCALE + 2 * lv + 1, l] = np.float32(lh * 256)
+            else:
+                li[_LI_LEVEL, l] = level0
+                li[_LI_LEVEL + 1, l] = level1
+                li[_LI_IMGF, l] = image_filter
+                li[_LI_TWO, l] = two
+                lf[_LF_FRAC, l] = frac
     if block_passed == 0:
         return
-    if tex_params[_T_VEC]:
+    if vectorised:
         _lanes_bilinear_fixed(n, lf, li, lu, texels32, wrap_s, wrap_t)
     else:
         for l in range(n):
@@ -990,14 +969,9 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
                 _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8)
     # The fragment colour as llvmpipe's bytes, one RGBA8 word per lane (vectorised) ...
     for l in range(n):
-        w0, w1, w2 = lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l]
-        alpha = w0 * ca0 + w1 * ca1 + w2 * ca2
-        r = (w0 * cr0 + w1 * cr1 + w2 * cr2) * alpha * lf[_LF_TEX, l]
-        g = (w0 * cg0 + w1 * cg1 + w2 * cg2) * alpha * lf[_LF_TEX + 1, l]
-        b = (w0 * cb0 + w1 * cb1 + w2 * cb2) * alpha * lf[_LF_TEX + 2, l]
-        a = alpha * lf[_LF_TEX + 3, l]
-        li[_LI_WORD, l] = (_unorm8_lane(r) | (_unorm8_lane(g) << 8) | (_unorm8_lane(b) << 16)
-                           | (_unorm8_lane(a) << 24))
+        li[_LI_WORD, l] = _shade_word(lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l],
+                                      cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2,
+                                      lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l])
     # ... blended in 8-bit integers and written (`ops.apply_fragments`).
     for l in range(n):
         p = li[_LI_PASS, l]

@@ -100,14 +100,12 @@ def unorm8(v):
     the float32 product ``v * 255``, rounded half to even (cvtps2dq), then
     saturated to [0, 255] by the pack instructions; NaN gives 0.  softras's
     float64 colour is first rounded to float32, as the shader's output is.
-    Returns an int in [0, 255].
+    Returns an int in [0, 255].  Written without branches (selects), so that
+    a compiled loop calling it vectorises (`softras.fastpath`'s lanes).
     """
     v32 = np.float32(v)
-    if not v32 > 0:                 # negative or NaN
-        return 0
-    if v32 >= 1:
-        return 255
-    return int(np.rint(np.float64(np.float32(v32 * np.float32(255.0)))))
+    clamped = min(v32 if v32 > 0 else np.float32(0.0), np.float32(1.0))     # negative or NaN -> 0
+    return np.int64(np.int32(np.rint(np.float64(np.float32(clamped * np.float32(255.0))))))
 
 
 @numba.njit(cache=True)
