@@ -11,6 +11,7 @@ Spaces: model (mesh positions) -> world (`Draw.world`) -> eye (`Camera.view`)
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 
@@ -37,15 +38,22 @@ def to_clip(positions: np.ndarray, mvp: np.ndarray, precision: str = "gl") -> np
     every value is exactly a float32.
     """
     if precision == "gl":
-        m = mvp.astype(np.float32)
-        p = positions.astype(np.float32)
-        clip = m[:, 0] * p[:, 0:1]
-        clip = clip + m[:, 1] * p[:, 1:2]
-        clip = clip + m[:, 2] * p[:, 2:3]
-        clip = clip + m[:, 3]
-        return clip.astype(np.float64)
+        return _to_clip_float32(np.ascontiguousarray(positions, np.float32), mvp.astype(np.float32))
     homogeneous = np.concatenate([positions.astype(np.float64), np.ones((len(positions), 1))], axis=1)
     return homogeneous @ mvp.T
+
+
+@numba.njit(cache=True)
+def _to_clip_float32(p, m):
+    """(N, 3) float32 positions, (4, 4) float32 matrix -> (N, 4) float64 clip
+    positions, each row ``((m[:, 0] x + m[:, 1] y) + m[:, 2] z) + m[:, 3]``
+    in float32 (no fused multiply-add: numba does not contract)."""
+    out = np.empty((p.shape[0], 4))
+    for v in range(p.shape[0]):
+        x, y, z = p[v, 0], p[v, 1], p[v, 2]
+        for r in range(4):
+            out[v, r] = np.float64(((m[r, 0] * x + m[r, 1] * y) + m[r, 2] * z) + m[r, 3])
+    return out
 
 
 def world_positions(positions: np.ndarray, world: np.ndarray) -> np.ndarray:

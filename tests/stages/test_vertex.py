@@ -26,3 +26,23 @@ def test_gl_precision_rounds_like_float32():
     clip = vertex.to_clip(np.array([[1.0, 2.0, 0.0]]), mvp, "gl")
     assert clip[0, 0] == np.float32(np.float32(1 / 3) * np.float32(1.0))
     assert clip[0, 0] != 1 / 3
+
+
+def test_gl_precision_is_the_float32_column_sum_bit_for_bit():
+    """The compiled float32 loop against numpy's float32 column sum (the shader's
+    ``u_mvp * vec4(p, 1)``), without a fused multiply-add, from tiny to overflowing
+    magnitudes (inf and NaN where float32 overflows)."""
+    rng = np.random.default_rng(7)
+    for scale in (1e-30, 1.0, 1e6, 1e30, 1e38):
+        p = rng.normal(size=(5000, 3)) * scale
+        m = rng.normal(size=(4, 4)) * 3
+        with np.errstate(all="ignore"):
+            m32, p32 = m.astype(np.float32), p.astype(np.float32)
+            expected = ((m32[:, 0] * p32[:, 0:1] + m32[:, 1] * p32[:, 1:2]) + m32[:, 2] * p32[:, 2:3]) + m32[:, 3]
+            got = vertex.to_clip(p, m, "gl")
+        np.testing.assert_array_equal(got, expected.astype(np.float64))
+    # An operand pair whose float32 product is inexact: a fused multiply-add would keep the low bits.
+    a = np.float32(1 + 2 ** -12)
+    mvp = np.array([[float(a), 0, 0, -1.0]] + [[0, 0, 0, 1.0]] * 3)
+    clip = vertex.to_clip(np.array([[float(a), 0.0, 0.0]]), mvp, "gl")
+    assert clip[0, 0] == np.float64(np.float32(a * a) - np.float32(1.0))
