@@ -6,13 +6,13 @@ attributes) as numpy arrays.  This module computes *the same numbers* (bit for
 bit, see tests/test_fastpath.py) for the draws that need only the common
 features, without the intermediate buffers:
 
-1. vertex: `softras.vertex.to_clip` (numpy, per vertex);
+1. vertex: `softras.vertex.to_clip` (a compiled float32 loop, per vertex);
 2. clip: `softras.clip.clip_triangles` (its crossing triangles go through a
    compiled kernel in gl precision);
 3. setup (`_setup`, compiled, one pass over the clipped triangles): viewport
    transform with llvmpipe's fused multiply-add, 1/256 snapping, area and
    culling, counter-clockwise corner order, integer edge functions, fill rule,
-   pixel bounding box, depth plane; then (`_corner_values`) the attributes at
+   pixel bounding box, depth plane, and (`_corner_values`) the attributes at
    the corners (clip weights x source vertex values, in the pipeline's order);
 4. binning (`_bin`): the visible triangles are listed, in draw order, in every
    64x64-pixel tile their bounding box touches;
@@ -21,16 +21,18 @@ features, without the intermediate buffers:
    so tiles never race on the framebuffer); within a tile the triangles in
    draw order; per triangle the 8x8 blocks of its bounding box inside the
    tile with the exact early-out / early-in corner test of
-   `softras.rasterize`; per covered pixel, at once: depth at each sample
-   (plane equation, 24-bit rounding), depth test, perspective-correct
-   colour, blend, RGBA8 rounding and the write.  Textured draws do the same
-   per block in lanes (`_textured_block`: the block's covered 2x2 quads,
-   with per-quad derivatives and level of detail), so that the arithmetic
-   compiles to SIMD loops.  No fragment list exists.
+   `softras.rasterize`; the covered pixels listed as "lanes" (below the
+   tile kernel) and shaded by loops over the lanes that compile to SIMD:
+   depth at each sample (plane equation, 24-bit rounding), depth test,
+   perspective-correct colour, texture (`_textured_block`: the block's
+   covered 2x2 quads, with per-quad derivatives and level of detail),
+   RGBA8 rounding, blend and the write.  No fragment list exists.
 
 The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes (``(H, W, S, 4) uint8``; byte k stands for the pipeline's float k/255)
-and depth as float64 multiples of 1/(2^24 - 1).
+and depth as the integer k of the pipeline's depth k / (2^24 - 1) (``(H, W, S)
+int32``; -1 for NaN): the depth test compares integers, and no division
+turns k back into a float (`_depth_pass_k`).
 
 `unsupported(scene, ...)` says why a scene must take the general path (lines,
 lit shading, anisotropic textures, other sample counts or clipping
@@ -58,7 +60,7 @@ import numpy as np
 
 from . import clip as clip_stage
 from . import ops, setup, texture, vertex
-from .ops import _depth_pass, blend_unorm8, unorm8
+from .ops import blend_unorm8, unorm8
 from .scene import Scene, ordered_draws
 from .texture import WRAP_CODES, wrap_index
 
@@ -128,7 +130,7 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     """
     offsets, _ = setup.sample_offsets(positions, "gl")
     shape = (scene.height, scene.width, len(positions))
-    depth = _scratch.take("depth", shape, np.float64)
+    depth = _scratch.take("depth", shape, np.int32)
     color = _scratch.take("color", shape + (4,), np.uint8) if reuse else None
     color, depth = new_framebuffer(scene.width, scene.height, len(positions), scene.background, depth, color)
     offsets = np.ascontiguousarray(offsets, np.int64)
@@ -140,16 +142,16 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
 
 def new_framebuffer(width: int, height: int, samples: int, background, depth: np.ndarray | None = None,
                     color: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(color (H, W, S, 4) uint8, depth (H, W, S) float64) cleared as `ops.new_framebuffer`
+    """(color (H, W, S, 4) uint8, depth (H, W, S) int32) cleared as `ops.new_framebuffer`
     with quantize: colour bytes round(clamp(premultiplied background) * 255), depth 1
-    (into ``depth`` and ``color`` when given)."""
+    (its integer DEPTH_SCALE) (into ``depth`` and ``color`` when given)."""
     bg = np.asarray(background, np.float64)
     premultiplied = np.concatenate([bg[:3] * bg[3], bg[3:4]])
     clear_bytes = np.rint(np.clip(premultiplied, 0.0, 1.0) * 255.0).astype(np.uint8)
     if color is None:
         color = np.empty((height, width, samples, 4), np.uint8)
     if depth is None:
-        depth = np.empty((height, width, samples))
+        depth = np.empty((height, width, samples), np.int32)
     clear(color, depth, clear_bytes)
     return color, depth
 
@@ -165,31 +167,31 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
         return
     n = len(source)
     n_threads = numba.get_num_threads()
+    material = draw.material
+    textured = material.texture is not None
+    vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
+    base = np.ascontiguousarray(vertex_colors * material.color)             # straight, per vertex
+    uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured
+           else np.zeros((0, 2)))
     tri_f = _scratch.take("tri_f", (n, _NF), np.float64)
     tri_i = _scratch.take("tri_i", (n, _NI), np.int64)
     bbox = _scratch.take("bbox", (n, 4), np.int64)
-    _setup(clip_pos, mesh.indices, source, slot, fan_clip, fan_weights,
-           width, height, CULL_CODES[draw.cull], offsets, SUBPIXEL_ONE, tri_f, tri_i, bbox, n_threads)
+    colors = _scratch.take("colors", (n, 3, 4), np.float64)
+    uv = _scratch.take("uv", (n if textured else 1, 3, 2), np.float64)
+    _setup(clip_pos, mesh.indices, source, slot, fan_clip, fan_weights, width, height, CULL_CODES[draw.cull],
+           offsets, tri_f, tri_i, bbox, (base, colors, uvs, uv), n_threads)
     visible = np.flatnonzero(tri_i[:, _I_VIS])
     if len(visible) == 0:
         return
-    material = draw.material
-    vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
-    base = np.ascontiguousarray(vertex_colors * material.color)             # straight, per vertex
-    corner_args = (tri_i[:, _I_SWAP], mesh.indices, source, slot, fan_weights, visible)
-    colors = _corner_values(base, *corner_args, _scratch.take("colors", (n, 3, 4), np.float64))
     tex_params = np.zeros(_NT, np.int64)
     levels_flat, level_table = np.zeros(4, np.uint8), np.zeros((1, 3), np.int64)
-    uv = np.zeros((1, 3, 2))
-    if material.texture is not None:
+    if textured:
         tex = texture.prepare(scene.textures[material.texture])
         tex_params, levels_flat, level_table = texture_tables(tex, texture_fixed_point)
-        uvs = np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64))
-        uv = _corner_values(uvs, *corner_args, _scratch.take("uv", (n, 3, 2), np.float64))
     tiles_x = (width + TILE - 1) // TILE
     tiles_y = (height + TILE - 1) // TILE
     bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
-    draw_tiles = _DRAW_TILES[len(offsets), material.texture is not None]
+    draw_tiles = _DRAW_TILES[len(offsets), textured]
     draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
                 offsets, positions, color, color.view(np.uint32)[..., 0], depth,
                 ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
@@ -239,7 +241,8 @@ def _texture_tables(tex: texture.MipTexture, fixed_point: bool):
     return params, flat, table
 
 
-SUBPIXEL_ONE = 256
+SUBPIXEL_BITS = setup.SUBPIXEL_BITS      # gl precision snaps to 1/256 pixel
+SUBPIXEL_ONE = setup.SUBPIXEL_ONE
 PARALLEL_SETUP = 4096      # triangles from which `_setup` runs in parallel chunks
 
 
@@ -278,155 +281,185 @@ def scratch_nbytes() -> int:
 # ----------------------------------------------------------------------------- setup
 
 
-def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
-           tri_f, tri_i, bbox, n_threads):
-    """`_setup_chunks` in one chunk, or in parallel chunks from PARALLEL_SETUP
-    triangles (a parallel region costs ~0.4 ms of thread wake-up)."""
-    args = (clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
-            tri_f, tri_i, bbox)
+def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets,
+           tri_f, tri_i, bbox, attributes, n_threads):
+    """Set up the clipped triangles (`_setup_range`): in one call, or in
+    parallel chunks from PARALLEL_SETUP triangles."""
+    # The window corners of the input vertices, once per vertex (a vertex is
+    # shared by ~6 triangles).
+    vertex_f = _scratch.take("vertex_f", (len(clip_pos), 4), np.float64)
+    vertex_i = _scratch.take("vertex_i", (len(clip_pos), 2), np.int64)
+    _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
+    args = (vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets,
+            tri_f, tri_i, bbox, attributes)
     if len(source) < PARALLEL_SETUP:
-        _setup_chunks_serial(*args, 1)
+        _setup_range(0, len(source), *args)
     else:
-        _setup_chunks_parallel(*args, 4 * n_threads)
+        _setup_chunks(*args, 4 * n_threads)
 
 
-def _make_setup(parallel: bool):
-    """The set-up kernel, serial or over parallel chunks (`parallel` is a
-    closure constant: part of numba's cache key, so the two never mix)."""
-
-    @numba.njit(cache=True, parallel=parallel, error_model="numpy")
-    def _setup_chunks(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets, unit,
-                      tri_f, tri_i, bbox, n_chunks):
-        """`softras.setup.setup_triangles` (gl precision) and the depth plane of
-        `softras.interpolate.depth_at_samples`, for the clipped triangles listed
-        by `softras.clip.triangle_list_gl` (source, slot, fan_clip, fan_weights).
-
-        Fills tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts at the top
-        of the module) and bbox (T, 4) int64 (x0, x1, y0, y1 inclusive); the
-        triangles that the pipeline drops (zero area, culled, empty box) have
-        tri_i[:, _I_VIS] == 0 and their other entries undefined.
-        """
-        n = source.shape[0]
-        n_chunks = n_chunks if parallel else 1
-        sx = np.array([width / 2.0, height / 2.0, 0.5])
-        sx32 = sx.astype(np.float32)
-        min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
-        min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
-        for chunk in numba.prange(n_chunks):            # (each chunk with its own small arrays)
-            wx = np.empty(3)
-            wy = np.empty(3)
-            wz = np.empty(3)
-            iw = np.empty(3)
-            win = np.empty(3)
-            c = np.empty(4)
-            rx = np.empty(3, np.int64)
-            ry = np.empty(3, np.int64)
-            for t in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
-                tri_i[t, _I_VIS] = 0
-                tri_i[t, _I_SWAP] = 0
-                for k in range(3):
-                    f = slot[t]
-                    if f < 0:
-                        v = indices[source[t], k]
-                        c[0], c[1], c[2], c[3] = clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3]
-                        fused = True
-                    else:
-                        c[0], c[1], c[2], c[3] = (fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2],
-                                                  fan_clip[f, k, 3])
-                        # A vertex made by the clipper has no weight exactly 1 (clip.generated).
-                        fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
-                    oow = np.float32(1.0) / np.float32(c[3])
-                    for j in range(3):
-                        p = np.float64(np.float32(c[j]) * oow)
-                        if fused:
-                            win[j] = np.float64(np.float32(p * sx[j] + sx[j]))
-                        else:
-                            win[j] = np.float64(np.float32(np.float32(p * sx[j]) + sx32[j]))
-                    wx[k], wy[k], wz[k], iw[k] = win[0], win[1], win[2], np.float64(oow)
-                    rx[k] = np.int64(np.rint((np.float32(win[0]) - np.float32(0.5)) * np.float32(256.0)))
-                    ry[k] = np.int64(np.rint((np.float32(win[1]) - np.float32(0.5)) * np.float32(256.0)))
-                area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
-                front = area > 0
-                if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
-                    continue
-                if not front:                           # swap corners 0 and 1 -> counter-clockwise
-                    wx[0], wx[1] = wx[1], wx[0]
-                    wy[0], wy[1] = wy[1], wy[0]
-                    wz[0], wz[1] = wz[1], wz[0]
-                    iw[0], iw[1] = iw[1], iw[0]
-                    rx[0], rx[1] = rx[1], rx[0]
-                    ry[0], ry[1] = ry[1], ry[0]
-                    tri_i[t, _I_SWAP] = 1
-                # Bounding box in pixels, as setup_triangles computes it.
-                x_lo = np.ceil((min(rx[0], min(rx[1], rx[2])) - max_ox) / unit)
-                x_hi = np.floor((max(rx[0], max(rx[1], rx[2])) - min_ox) / unit)
-                y_lo = np.ceil((min(ry[0], min(ry[1], ry[2])) - max_oy) / unit)
-                y_hi = np.floor((max(ry[0], max(ry[1], ry[2])) - min_oy) / unit)
-                b0 = max(np.int64(min(max(x_lo, -1.0), float(width))), 0)
-                b1 = min(np.int64(min(max(x_hi, -1.0), float(width))), width - 1)
-                b2 = max(np.int64(min(max(y_lo, -1.0), float(height))), 0)
-                b3 = min(np.int64(min(max(y_hi, -1.0), float(height))), height - 1)
-                if b0 > b1 or b2 > b3:
-                    continue
-                bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
-                for i in range(3):
-                    j = (i + 1) % 3
-                    x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
-                    sign = 1
-                    if x0 > x1 or (x0 == x1 and y0 > y1):
-                        x0, y0, x1, y1 = x1, y1, x0, y0
-                        sign = -1
-                    a = (y0 - y1) * sign
-                    b = (x1 - x0) * sign
-                    tri_i[t, _I_A + i] = a
-                    tri_i[t, _I_B + i] = b
-                    tri_i[t, _I_X0 + i] = x0
-                    tri_i[t, _I_Y0 + i] = y0
-                    tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
-                tri_i[t, _I_VIS] = 1
-                for k in range(3):
-                    tri_f[t, _F_X + k] = wx[k]
-                    tri_f[t, _F_Y + k] = wy[k]
-                    tri_f[t, _F_Z + k] = wz[k]
-                    tri_f[t, _F_W + k] = iw[k]
-                dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
-                dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
-                det = dx1 * dy2 - dx2 * dy1
-                tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
-                tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
-
-    return _setup_chunks
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _setup_chunks(vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height, cull,
+                  offsets, tri_f, tri_i, bbox, attributes, n_chunks):
+    """`_setup_range` over n_chunks parallel chunks of the triangles (one
+    compiled loop body serves the serial and the parallel set-up)."""
+    n = source.shape[0]
+    for chunk in numba.prange(n_chunks):
+        _setup_range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks, vertex_f, vertex_i, indices, source,
+                     slot, fan_clip, fan_weights, width, height, cull, offsets, tri_f, tri_i, bbox, attributes)
 
 
-_setup_chunks_serial = _make_setup(False)
-_setup_chunks_parallel = _make_setup(True)
+@numba.njit(cache=True, error_model="numpy")
+def _window_vertices(clip_pos, width, height, vertex_f, vertex_i):
+    """`_window_corner` of every input vertex (clip_pos (V, 4)): fills
+    vertex_f (V, 4) float64 with window x, y, z and 1/w and vertex_i (V, 2)
+    int64 with the snapped x, y."""
+    for v in range(clip_pos.shape[0]):
+        (vertex_f[v, 0], vertex_f[v, 1], vertex_f[v, 2], vertex_f[v, 3], vertex_i[v, 0],
+         vertex_i[v, 1]) = _window_corner(clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3],
+                                          True, width, height)
 
 
-@numba.njit(cache=True)
-def _corner_values(values, swapped, indices, source, slot, fan_weights, visible, out):
-    """Attributes at the set-up corners: (T, 3, K) float64 for the visible
-    triangles, as the pipeline's ``einsum("tkj,tjc->tkc", w, values[vertices])``
-    with the clip weights (identity for a passed-through triangle) in set-up
-    corner order and the same sum order.  Fills out (T, 3, K) (rows of the
-    invisible triangles are left as they were) and returns it."""
-    n_k = values.shape[1]
-    w = np.empty(3)
-    for v in range(visible.shape[0]):
-        t = visible[v]
-        i0, i1, i2 = indices[source[t], 0], indices[source[t], 1], indices[source[t], 2]
+@numba.njit(cache=True, inline="always")
+def _window_corner(x, y, z, w, fused, width, height):
+    """One clip-space corner (x, y, z, w) -> window (x, y, z) as float32
+    values, 1/w (float32) and the corner snapped to 1/256 pixel (x, y int64),
+    as `softras.setup` computes them in gl precision: llvmpipe's viewport
+    transform with a fused multiply-add for an input vertex (``fused``), an
+    unfused one for a vertex made by the clipper."""
+    oow = np.float32(1.0) / np.float32(w)
+    px = np.float64(np.float32(x) * oow)
+    py = np.float64(np.float32(y) * oow)
+    pz = np.float64(np.float32(z) * oow)
+    hx, hy, hz = width / 2.0, height / 2.0, 0.5
+    if fused:
+        wx = np.float64(np.float32(px * hx + hx))
+        wy = np.float64(np.float32(py * hy + hy))
+        wz = np.float64(np.float32(pz * hz + hz))
+    else:
+        wx = np.float64(np.float32(np.float32(px * hx) + np.float32(hx)))
+        wy = np.float64(np.float32(np.float32(py * hy) + np.float32(hy)))
+        wz = np.float64(np.float32(np.float32(pz * hz) + np.float32(hz)))
+    rx = np.int64(np.rint((np.float32(wx) - np.float32(0.5)) * np.float32(SUBPIXEL_ONE)))
+    ry = np.int64(np.rint((np.float32(wy) - np.float32(0.5)) * np.float32(SUBPIXEL_ONE)))
+    return wx, wy, wz, np.float64(oow), rx, ry
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _setup_range(start, stop, vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height,
+                 cull, offsets, tri_f, tri_i, bbox, attributes):
+    """`softras.setup.setup_triangles` (gl precision) and the depth plane of
+    `softras.interpolate.depth_at_samples`, for the clipped triangles start
+    to stop - 1 listed by `softras.clip.triangle_list_gl` (source, slot,
+    fan_clip, fan_weights), the input vertices' window corners given
+    (`_window_vertices`).
+
+    Fills their rows of tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts
+    at the top of the module), bbox (T, 4) int64 (x0, x1, y0, y1 inclusive)
+    and the corner attributes (`_corner_values`) of ``attributes`` = (vertex
+    colours (V, 4), corner colours (T, 3, 4), vertex uvs (V, 2) or (0, 2)
+    when untextured, corner uvs (T, 3, 2)); the triangles that the pipeline
+    drops (zero area, culled, empty box) have tri_i[:, _I_VIS] == 0 and their
+    other entries undefined.
+    """
+    min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
+    min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
+    vertex_colors, corner_colors, vertex_uvs, corner_uvs = attributes
+    wx = np.empty(3)
+    wy = np.empty(3)
+    wz = np.empty(3)
+    iw = np.empty(3)
+    rx = np.empty(3, np.int64)
+    ry = np.empty(3, np.int64)
+    for t in range(start, stop):
+        tri_i[t, _I_VIS] = 0
+        tri_i[t, _I_SWAP] = 0
+        f = slot[t]
         for k in range(3):
-            row = k
-            if swapped[t] and k < 2:
-                row = 1 - k
-            if slot[t] < 0:
-                for j in range(3):
-                    w[j] = 1.0 if j == row else 0.0
+            if f < 0:
+                v = indices[source[t], k]
+                wx[k], wy[k], wz[k], iw[k] = vertex_f[v, 0], vertex_f[v, 1], vertex_f[v, 2], vertex_f[v, 3]
+                rx[k], ry[k] = vertex_i[v, 0], vertex_i[v, 1]
             else:
-                for j in range(3):
-                    w[j] = fan_weights[slot[t], row, j]
-            for c in range(n_k):
-                out[t, k, c] = w[0] * values[i0, c] + w[1] * values[i1, c] + w[2] * values[i2, c]
-    return out
+                # A vertex made by the clipper has no weight exactly 1 (clip.generated).
+                fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
+                wx[k], wy[k], wz[k], iw[k], rx[k], ry[k] = _window_corner(
+                    fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2], fan_clip[f, k, 3], fused,
+                    width, height)
+        area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
+        front = area > 0
+        if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
+            continue
+        if not front:                           # swap corners 0 and 1 -> counter-clockwise
+            wx[0], wx[1] = wx[1], wx[0]
+            wy[0], wy[1] = wy[1], wy[0]
+            wz[0], wz[1] = wz[1], wz[0]
+            iw[0], iw[1] = iw[1], iw[0]
+            rx[0], rx[1] = rx[1], rx[0]
+            ry[0], ry[1] = ry[1], ry[0]
+            tri_i[t, _I_SWAP] = 1
+        # Bounding box in pixels, as setup_triangles computes it (its
+        # float ceil / floor of a multiple of 1/256 here in integers).
+        x_lo = -((max_ox - min(rx[0], min(rx[1], rx[2]))) >> SUBPIXEL_BITS)
+        x_hi = (max(rx[0], max(rx[1], rx[2])) - min_ox) >> SUBPIXEL_BITS
+        y_lo = -((max_oy - min(ry[0], min(ry[1], ry[2]))) >> SUBPIXEL_BITS)
+        y_hi = (max(ry[0], max(ry[1], ry[2])) - min_oy) >> SUBPIXEL_BITS
+        b0 = max(min(max(x_lo, -1), width), 0)
+        b1 = min(min(max(x_hi, -1), width), width - 1)
+        b2 = max(min(max(y_lo, -1), height), 0)
+        b3 = min(min(max(y_hi, -1), height), height - 1)
+        if b0 > b1 or b2 > b3:
+            continue
+        bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
+        for i in range(3):
+            j = (i + 1) % 3
+            x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
+            sign = 1
+            if x0 > x1 or (x0 == x1 and y0 > y1):
+                x0, y0, x1, y1 = x1, y1, x0, y0
+                sign = -1
+            a = (y0 - y1) * sign
+            b = (x1 - x0) * sign
+            tri_i[t, _I_A + i] = a
+            tri_i[t, _I_B + i] = b
+            tri_i[t, _I_X0 + i] = x0
+            tri_i[t, _I_Y0 + i] = y0
+            tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
+        tri_i[t, _I_VIS] = 1
+        for k in range(3):
+            tri_f[t, _F_X + k] = wx[k]
+            tri_f[t, _F_Y + k] = wy[k]
+            tri_f[t, _F_Z + k] = wz[k]
+            tri_f[t, _F_W + k] = iw[k]
+        dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
+        dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
+        det = dx1 * dy2 - dx2 * dy1
+        tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
+        tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
+        vertex_colors, corner_colors, vertex_uvs, corner_uvs = attributes
+        _corner_values(vertex_colors, corner_colors, t, indices, source, slot, fan_weights,
+                       tri_i[t, _I_SWAP])
+        if vertex_uvs.shape[0]:
+            _corner_values(vertex_uvs, corner_uvs, t, indices, source, slot, fan_weights,
+                           tri_i[t, _I_SWAP])
+
+
+@numba.njit(cache=True, inline="always")
+def _corner_values(values, out, t, indices, source, slot, fan_weights, swapped):
+    """Attributes at set-up triangle t's corners: out[t] (3, K) from the
+    vertex values (V, K), as the pipeline's ``einsum("tkj,tjc->tkc", w,
+    values[vertices])`` with the clip weights (identity for a passed-through
+    triangle) in set-up corner order and the same sum order."""
+    i0, i1, i2 = indices[source[t], 0], indices[source[t], 1], indices[source[t], 2]
+    f = slot[t]
+    for k in range(3):
+        row = 1 - k if swapped and k < 2 else k
+        if f < 0:
+            w0, w1, w2 = (1.0 if row == 0 else 0.0), (1.0 if row == 1 else 0.0), (1.0 if row == 2 else 0.0)
+        else:
+            w0, w1, w2 = fan_weights[f, row, 0], fan_weights[f, row, 1], fan_weights[f, row, 2]
+        for c in range(values.shape[1]):
+            out[t, k, c] = w0 * values[i0, c] + w1 * values[i1, c] + w2 * values[i2, c]
 
 
 # ----------------------------------------------------------------------------- binning
@@ -640,12 +673,13 @@ def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, 
 
 
 def clear(color, depth, clear_bytes):
-    """Fill the byte colour buffer (H, W, S, 4) with clear_bytes (4,) uint8 and depth with 1.
+    """Fill the byte colour buffer (H, W, S, 4) with clear_bytes (4,) uint8 and depth
+    (H, W, S) int32 with 1 (DEPTH_SCALE, see the module docstring).
 
     numpy's fill of the buffer seen as RGBA8 words: a third of the time of a
     parallel numba loop, which also pays the wake-up of its threads."""
     color.view(np.uint32).fill(np.ascontiguousarray(clear_bytes, np.uint8).view(np.uint32)[0])
-    depth.fill(1.0)
+    depth.fill(int(DEPTH_SCALE))
 
 
 # ----------------------------------------------------------------------------- the tile kernel
@@ -662,14 +696,15 @@ def clear(color, depth, clear_bytes):
 LANES = 64                                   # 16 quads of an 8x8 block
 # float64 lane rows: pixel centre, perspective weights, (s, t), per level the
 # float32 scales size * 256 of s and t, the mip blend fraction, the filtered
-# texel (r, g, b, a in [0, 1]), then depth at each sample.
-_LF_CX, _LF_CY, _LF_W, _LF_S, _LF_T, _LF_SCALE, _LF_FRAC, _LF_TEX, _LF_Z = 0, 1, 2, 5, 6, 7, 11, 12, 16
+# texel (r, g, b, a in [0, 1]).
+_LF_CX, _LF_CY, _LF_W, _LF_S, _LF_T, _LF_SCALE, _LF_FRAC, _LF_TEX, _NLF = 0, 1, 2, 5, 6, 7, 11, 12, 16
 # int64 lane rows: pixel, coverage mask, depth-passed mask, per level the
 # texel word offset / width / height, mip weight (0..256), levels, image
 # filter, two levels or one, the 8 texel addresses, the 4 filter weights,
-# then the fragment's RGBA8 word.
+# the fragment's RGBA8 word, then the depth at each sample as its 24-bit
+# integer (`_lane_depths`).
 (_LI_PX, _LI_PY, _LI_COV, _LI_PASS, _LI_BASE, _LI_LW, _LI_LH, _LI_W8, _LI_LEVEL, _LI_IMGF, _LI_TWO,
- _LI_ADDR, _LI_FRAC8, _LI_WORD, _NLI) = 0, 1, 2, 3, 4, 6, 8, 10, 11, 13, 14, 15, 23, 27, 28
+ _LI_ADDR, _LI_FRAC8, _LI_WORD, _LI_Z) = 0, 1, 2, 3, 4, 6, 8, 10, 11, 13, 14, 15, 23, 27, 28
 
 
 def _make_draw_tiles(n_samples: int, textured: bool):
@@ -686,7 +721,7 @@ def _make_draw_tiles(n_samples: int, textured: bool):
         """Rasterize, shade and apply every binned triangle, tiles in parallel.
 
         color : (H, W, S, 4) uint8 (color32: the same memory as (H, W, S) RGBA8
-        words), depth : (H, W, S) float64, updated in place.
+        words), depth : (H, W, S) int32 (see the module docstring), updated in place.
         texels / texels32 : a texture's levels as bytes and as RGBA8 words.
         Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
         so a scene covering only part of the picture still keeps every thread busy).
@@ -697,12 +732,13 @@ def _make_draw_tiles(n_samples: int, textured: bool):
             dst = np.empty(4, np.int64)          # stored bytes
             out = np.empty(4, np.int64)          # blended bytes
             texel = np.empty((2, 4))             # float-weight filtering: the two levels' RGBA
-            lf = np.zeros((_LF_Z + n_samples, LANES))       # textured: lane rows (see above)
-            li = np.zeros((_NLI, LANES), np.int64)
+            lf = np.zeros((_NLF, 2 * LANES))                # lane rows (see above)
+            li = np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64)
             lu = np.zeros((8, LANES), np.uint64)             # the 8 fetched texels, spread
+            edges = np.zeros((3, n_samples), np.int64)      # a row's edge functions per sample
             # (Grouped in tuples: CPython 3.11 passes a call with over 30
             # arguments as *args, which numba cannot inline.)
-            buffers = (src, dst, out, texel, lf, li, lu)
+            buffers = (src, dst, out, texel, lf, li, lu, edges)
             for tile in range(r, n_tiles, n_threads):
                 _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
                       offsets, positions, color, color32, depth, (depth_func, depth_write, blend),
@@ -716,17 +752,17 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
           offsets, positions, color, color32, depth, state, tex, buffers, n_samples, textured):
     """One 64x64 tile: its triangles in draw order; per triangle the 8x8 blocks
     of its bounding box inside the tile with the exact early-out / early-in
-    corner test of `softras.rasterize`; then per pixel (untextured: coverage,
-    depth test, colour, blend, write) or per block in lanes (textured,
-    `_textured_block`).  The per-pixel arithmetic is `softras.pipeline`'s,
+    corner test of `softras.rasterize`; then in lanes: the covered pixels of
+    an untextured triangle (`_flat_block`, from LANES of them and after its
+    last block), the covered quads of a textured one per block
+    (`_textured_block`).  The per-pixel arithmetic is `softras.pipeline`'s,
     operation for operation.
 
     state : (depth function, depth write, blend mode) codes; tex : (params,
     texels as bytes, as RGBA8 words, level table); buffers : the thread's
     scratch arrays (see `_make_draw_tiles`)."""
     depth_func, depth_write, blend = state
-    src, dst, out = buffers[0], buffers[1], buffers[2]
-    lf, li = buffers[4], buffers[5]
+    lf, li, edges = buffers[4], buffers[5], buffers[7]
     full_mask = (1 << n_samples) - 1
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
@@ -738,20 +774,14 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
     ty1 = min(ty0 + TILE, height) - 1
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
-        x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
-        y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
-        iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
-        z0, dzdx, dzdy = tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY]
         a0, b0, ex0, ey0, k0 = (tri_i[t, _I_A], tri_i[t, _I_B], tri_i[t, _I_X0], tri_i[t, _I_Y0],
                                 1 - tri_i[t, _I_INC])
         a1, b1, ex1, ey1, k1 = (tri_i[t, _I_A + 1], tri_i[t, _I_B + 1], tri_i[t, _I_X0 + 1],
                                 tri_i[t, _I_Y0 + 1], 1 - tri_i[t, _I_INC + 1])
         a2, b2, ex2, ey2, k2 = (tri_i[t, _I_A + 2], tri_i[t, _I_B + 2], tri_i[t, _I_X0 + 2],
                                 tri_i[t, _I_Y0 + 2], 1 - tri_i[t, _I_INC + 2])
-        cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
-        cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
-        cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
-        ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
+        n_flat = 0                              # untextured lanes listed, shaded from LANES on
+        step0, step1, step2 = a0 * 256, a1 * 256, a2 * 256     # edge steps per pixel
         x_start = max(bbox[t, 0], tx0)
         x_end = min(bbox[t, 1], tx1)
         y_start = max(bbox[t, 2], ty0)
@@ -804,36 +834,132 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                         _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32,
                                         depth_func, write_z, blend, tex, buffers, n_samples)
                     continue
+                # Untextured: the block's part of the box listed as lanes, the
+                # covered pixels kept without a branch (which pixels a small
+                # triangle covers is unpredictable); shaded once LANES are
+                # listed and after the triangle's last block.
+                n = n_flat
                 for py in range(by, by1 + 1):
-                    for px in range(bx, bx1 + 1):
-                        # Coverage, depth test and depth write of the pixel's samples.
+                    # The edge functions (`_inside3`) at the row's first pixel,
+                    # then stepped by a * 256 per pixel.
+                    for s in range(n_samples):
+                        sx = bx * 256 + offsets[s, 0]
+                        sy = py * 256 + offsets[s, 1]
+                        edges[0, s] = a0 * (sx - ex0) + b0 * (sy - ey0) - k0
+                        edges[1, s] = a1 * (sx - ex1) + b1 * (sy - ey1) - k1
+                        edges[2, s] = a2 * (sx - ex2) + b2 * (sy - ey2) - k2
+                    for i in range(bx1 - bx + 1):
                         mask = full_mask
                         if not all_in:
                             mask = 0
                             for s in range(n_samples):
-                                if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
-                                            a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1, a2, b2, ex2, ey2, k2):
-                                    mask |= 1 << s
-                        p = 0
-                        for s in range(n_samples):
-                            if (mask >> s) & 1:
-                                # Depth from the plane equation, rounded to 24 bits.
-                                zx = (px + positions[s, 0]) - x0
-                                zy = (py + positions[s, 1]) - y0
-                                z = z0 + dzdx * zx + dzdy * zy
-                                z = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
-                                if _depth_pass(depth_func, z, depth[py, px, s]):
-                                    if write_z:
-                                        depth[py, px, s] = z
-                                    p |= 1 << s
-                        if p == 0:
-                            continue
-                        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, px + 0.5, py + 0.5)
-                        # The fragment colour as llvmpipe's bytes, blended in
-                        # 8-bit integers (`ops.apply_fragments`).
-                        word = _shade_word(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
-                                           ca0, ca1, ca2, 1.0, 1.0, 1.0, 1.0)
-                        _write_word(color, color32, py, px, p, n_samples, blend, word, src, dst, out)
+                                inside = ((edges[0, s] + step0 * i) | (edges[1, s] + step1 * i)
+                                          | (edges[2, s] + step2 * i)) >= 0
+                                mask |= np.int64(inside) << s
+                        li[_LI_PX, n] = bx + i
+                        li[_LI_PY, n] = py
+                        li[_LI_COV, n] = mask
+                        n += mask != 0
+                n_flat = n
+                if n_flat >= LANES:
+                    _flat_block(n_flat, t, tri_f, colors, positions, depth, color, color32, depth_func,
+                                write_z, blend, buffers, n_samples)
+                    n_flat = 0
+        if n_flat:
+            _flat_block(n_flat, t, tri_f, colors, positions, depth, color, color32, depth_func, write_z,
+                        blend, buffers, n_samples)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _flat_block(n, t, tri_f, colors, positions, depth, color, color32, depth_func, write_z, blend,
+                buffers, n_samples):
+    """Depth-test, shade and write the n lanes (covered pixels, listed by
+    `_tile` with pixel and coverage mask) of one untextured triangle in one
+    8x8 block: depths (vectorised), the depth test keeping the lanes with a
+    passed sample (scalar, without branches), perspective weights and colour
+    bytes (vectorised), the writes (scalar)."""
+    src, dst, out, texel, lf, li, lu, edges = buffers
+    _lane_depths(n, t, tri_f, positions, li, n_samples)
+    kept = 0
+    for l in range(n):
+        px, py = li[_LI_PX, l], li[_LI_PY, l]
+        p = _depth_test_lane(li[_LI_COV, l], li, l, depth, py, px, depth_func, write_z, n_samples)
+        li[_LI_PX, kept] = px
+        li[_LI_PY, kept] = py
+        li[_LI_PASS, kept] = p
+        lf[_LF_CX, kept] = px + 0.5
+        lf[_LF_CY, kept] = py + 0.5
+        kept += p != 0
+    cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
+    cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
+    cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
+    ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
+    x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
+    y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
+    iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
+    for l in range(kept):
+        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, lf[_LF_CX, l], lf[_LF_CY, l])
+        li[_LI_WORD, l] = _shade_word(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
+                                      ca0, ca1, ca2, 1.0, 1.0, 1.0, 1.0)
+    for l in range(kept):
+        _write_word(color, color32, li[_LI_PY, l], li[_LI_PX, l], li[_LI_PASS, l], n_samples, blend,
+                    li[_LI_WORD, l], src, dst, out)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lane_depths(n, t, tri_f, positions, li, n_samples):
+    """Depth of triangle t at every lane's samples from its plane equation,
+    clamped and rounded to 24 bits, as the integer k of the stored k /
+    DEPTH_SCALE (-1 for NaN), into the _LI_Z rows (a vectorised loop)."""
+    x0, y0 = tri_f[t, _F_X], tri_f[t, _F_Y]
+    z0, dzdx, dzdy = tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY]
+    for s in range(n_samples):
+        ox, oy = positions[s, 0], positions[s, 1]
+        for l in range(n):
+            zx = (li[_LI_PX, l] + ox) - x0
+            zy = (li[_LI_PY, l] + oy) - y0
+            z = z0 + dzdx * zx + dzdy * zy
+            k = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE)
+            li[_LI_Z + s, l] = np.int32(k if k == k else -1.0)
+
+
+@numba.njit(cache=True, inline="always")
+def _depth_test_lane(mask, li, l, depth, py, px, depth_func, write_z, n_samples):
+    """The depth test of lane l's samples in ``mask`` against the integer
+    depth buffer, writing the passed depths when write_z; returns the mask of
+    passed samples.  No branches on the outcome."""
+    p = 0
+    for s in range(n_samples):
+        k = li[_LI_Z + s, l]
+        stored = depth[py, px, s]
+        passed = ((mask >> s) & 1 != 0) & _depth_pass_k(depth_func, k, stored)
+        depth[py, px, s] = k if passed & write_z else stored
+        p |= np.int64(passed) << s
+    return p
+
+
+@numba.njit(cache=True, inline="always")
+def _depth_pass_k(func, k, stored):
+    """`ops._depth_pass` on depths held as their 24-bit integers k (the
+    depth is k / DEPTH_SCALE, a strictly increasing map, so every comparison
+    agrees) and -1 for NaN, which compares as NaN does: unequal to all,
+    neither less nor greater."""
+    ordered = (k >= 0) & (stored >= 0)
+    if func == 0 or func == 8:
+        return True
+    if func == 1:
+        return False
+    if func == 2:
+        return ordered & (k < stored)
+    if func == 3:
+        return ordered & (k == stored)
+    if func == 4:
+        return ordered & (k <= stored)
+    if func == 5:
+        return ordered & (k > stored)
+    if func == 6:
+        return (not ordered) | (k != stored)
+    return ordered & (k >= stored)
 
 
 @numba.njit(cache=True, inline="always")
@@ -877,7 +1003,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
     the quad's; every lane's own (s, t) is its pixel's.  Lanes outside the
     triangle are the quad's helper pixels: computed, never written."""
     tex_params, texels, texels32, table = tex
-    src, dst, out, texel, lf, li, lu = buffers
+    src, dst, out, texel, lf, li, lu, edges = buffers
     cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
     cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
     cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
@@ -885,7 +1011,6 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
     x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
     y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
     iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
-    z0, dzdx, dzdy = tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY]
     u0, u1, u2 = uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]
     v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
     wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
@@ -899,30 +1024,14 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
         lf[_LF_W + 2, l] = w2
         lf[_LF_S, l] = w0 * u0 + w1 * u1 + w2 * u2
         lf[_LF_T, l] = w0 * v0 + w1 * v1 + w2 * v2
-    # Depth from the plane equation at every sample, rounded to 24 bits (vectorised).
-    for s in range(n_samples):
-        ox, oy = positions[s, 0], positions[s, 1]
-        for l in range(n):
-            zx = ((lf[_LF_CX, l] - 0.5) + ox) - x0           # (px + position) - x0: cx - 0.5 is px exactly
-            zy = ((lf[_LF_CY, l] - 0.5) + oy) - y0
-            z = z0 + dzdx * zx + dzdy * zy
-            lf[_LF_Z + s, l] = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE) / DEPTH_SCALE
+    _lane_depths(n, t, tri_f, positions, li, n_samples)          # (vectorised)
     # Depth test (scalar), then the level of detail of each quad with a passed sample.
     block_passed = 0
     for q in range(n >> 2):
         quad_passed = 0
         for l in range(4 * q, 4 * q + 4):
-            mask = li[_LI_COV, l]
-            p = 0
-            if mask:
-                px, py = li[_LI_PX, l], li[_LI_PY, l]
-                for s in range(n_samples):
-                    if (mask >> s) & 1:
-                        z = lf[_LF_Z + s, l]
-                        if _depth_pass(depth_func, z, depth[py, px, s]):
-                            if write_z:
-                                depth[py, px, s] = z
-                            p |= 1 << s
+            p = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func,
+                                 write_z, n_samples)
             li[_LI_PASS, l] = p
             quad_passed |= p
         block_passed |= quad_passed

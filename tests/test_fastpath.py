@@ -172,6 +172,39 @@ def test_branch_free_wrap_equals_wrap_index():
                 assert fastpath._wrap_select(i, size, mode) == wrap_index(i, size, mode), (i, size, mode)
 
 
+def test_integer_depth_test_equals_the_float_depth_test():
+    """`_depth_pass_k` on the 24-bit integers k (-1 for NaN) = `ops._depth_pass`
+    on the pipeline's depths k / (2^24 - 1), for every function, at the ends,
+    neighbouring values and NaN on either side."""
+    from softras.ops import DEPTH_FUNCS, _depth_pass
+    scale = fastpath.DEPTH_SCALE
+    ks = [-1, 0, 1, 2, 8388607, 8388608, int(scale) - 1, int(scale)]
+    for func in DEPTH_FUNCS.values():
+        for k in ks:
+            for stored in ks:
+                z = np.nan if k < 0 else k / scale
+                z_stored = np.nan if stored < 0 else stored / scale
+                assert fastpath._depth_pass_k(func, k, stored) == _depth_pass(func, z, z_stored), (func, k, stored)
+
+
+def test_lane_depths_round_like_the_float_depth():
+    """`_lane_depths`: the integer k of the pipeline's rounded depth
+    rint(clamp(z) * (2^24 - 1)) / (2^24 - 1) for in-range, clamped and NaN
+    plane values (NaN -> -1)."""
+    n = 6
+    tri_f = np.zeros((1, fastpath._NF))
+    li = np.zeros((fastpath._LI_Z + 1, 8), np.int64)
+    li[fastpath._LI_PX, :n] = [0, 1, 2, 3, 4, 5]
+    positions = np.array([[0.5, 0.5]])
+    for z0, dzdx in ((0.25, 0.1), (0.999, 0.001), (-0.3, 0.2), (np.nan, 0.0), (0.5, 1e-9)):
+        tri_f[0, fastpath._F_X], tri_f[0, fastpath._F_Z], tri_f[0, fastpath._F_DZDX] = 0.0, z0, dzdx
+        fastpath._lane_depths(n, 0, tri_f, positions, li, 1)
+        for l in range(n):
+            z = z0 + dzdx * (l + 0.5)
+            z = np.rint(min(max(z, 0.0), 1.0) * fastpath.DEPTH_SCALE) if z == z else np.nan
+            assert li[fastpath._LI_Z, l] == (-1 if np.isnan(z) else int(z)), (z0, dzdx, l)
+
+
 def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
     """`_lerp_lanes` on spread RGBA8 words = `_lerp8` per channel, for every weight 0..256."""
     rng = np.random.default_rng(7)
