@@ -20,8 +20,8 @@ bytes, and glref needs no module of softras but `softras.scene`.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
-
 
 
 
@@ -75,12 +75,7 @@ def procedural_texels(kind: str, size: tuple[int, int], params: dict) -> np.ndar
     """
     width, height = int(size[0]), int(size[1])
     if kind == "checker":
-        squares = int(params["squares"])
-        ci = (np.arange(width) * squares) // width
-        cj = (np.arange(height) * squares) // height
-        odd = ((cj[:, None] + ci[None, :]) % 2).astype(bool)
-        out = np.where(odd[..., None], _rgba8(params["color1"]), _rgba8(params["color0"]))
-        return np.ascontiguousarray(out.astype(np.uint8))
+        return _checker(width, height, int(params["squares"]), _rgba8(params["color0"]), _rgba8(params["color1"]))
     if kind == "gradient":
         c0 = np.asarray(params["color0"], np.float64)
         c1 = np.asarray(params["color1"], np.float64)
@@ -112,12 +107,45 @@ def procedural_texels(kind: str, size: tuple[int, int], params: dict) -> np.ndar
     raise ValueError(f"unknown procedural texture {kind!r}")
 
 
+@numba.njit(cache=True)
+def _checker(width, height, squares, color0, color1):
+    """The checker of `procedural_texels`: (H, W, 4) uint8."""
+    ci = np.empty(width, np.int64)
+    for i in range(width):
+        ci[i] = i * squares // width
+    out = np.empty((height, width, 4), np.uint8)
+    for j in range(height):
+        cj = j * squares // height
+        for i in range(width):
+            odd = (cj + ci[i]) & 1
+            for c in range(4):
+                out[j, i, c] = color1[c] if odd else color0[c]
+    return out
+
+
+# round(c * a / 255) for every alpha a (row) and channel value c (column),
+# halves up: (2 c a + 255) // 510.
+_PREMULTIPLIED = ((np.arange(256)[None, :] * np.arange(256)[:, None] * 2 + 255) // 510).astype(np.uint8).ravel()
+
+
 def premultiply_rgba8(straight: np.ndarray) -> np.ndarray:
-    """Straight (..., 4) uint8 RGBA -> premultiplied uint8, ``round(c * a / 255)``."""
-    s = straight.astype(np.int32)
-    out = s.copy()
-    out[..., :3] = (s[..., :3] * s[..., 3:4] * 2 + 255) // 510      # round half up
-    return out.astype(np.uint8)
+    """Straight (..., 4) uint8 RGBA -> premultiplied uint8, ``round(c * a / 255)``
+    (``(2 c a + 255) // 510``: halves round up)."""
+    straight = np.ascontiguousarray(straight, np.uint8)
+    return _premultiply(straight.reshape(-1, 4), _PREMULTIPLIED).reshape(straight.shape)
+
+
+@numba.njit(cache=True)
+def _premultiply(texels, table):
+    """(N, 4) uint8 straight -> premultiplied, through the table (a * 256 + c)."""
+    out = np.empty_like(texels)
+    for i in range(texels.shape[0]):
+        row = np.int64(texels[i, 3]) * 256
+        out[i, 0] = table[row + texels[i, 0]]
+        out[i, 1] = table[row + texels[i, 1]]
+        out[i, 2] = table[row + texels[i, 2]]
+        out[i, 3] = texels[i, 3]
+    return out
 
 
 def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
@@ -136,15 +164,27 @@ def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
 def downsample(level: np.ndarray) -> np.ndarray:
     """The next mip level: 2x2 box (2x1 / 1x2 where the level is one texel thin),
     rounded to nearest (halves up).  (H, W, C) uint8 -> uint8."""
-    h, w = level.shape[:2]
+    return _downsample(np.ascontiguousarray(level, np.uint8))
+
+
+@numba.njit(cache=True)
+def _downsample(level):
+    """`downsample` of a C-contiguous (H, W, C) uint8 level."""
+    h, w, channels = level.shape
     nh, nw = max(1, h // 2), max(1, w // 2)
-    x = level.astype(np.int32)
     fy = 2 if h > 1 else 1
     fx = 2 if w > 1 else 1
-    x = x[:nh * fy, :nw * fx]
-    total = x.reshape(nh, fy, nw, fx, -1).sum(axis=(1, 3))
     n = fy * fx
-    return ((total + n // 2) // n).astype(np.uint8)
+    out = np.empty((nh, nw, channels), np.uint8)
+    for j in range(nh):
+        for i in range(nw):
+            for c in range(channels):
+                total = np.uint32(0)
+                for dy in range(fy):
+                    for dx in range(fx):
+                        total += np.uint32(level[j * fy + dy, i * fx + dx, c])
+                out[j, i, c] = (total + np.uint32(n // 2)) // np.uint32(n)
+    return out
 
 
 def mip_chain(level0: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -44,6 +44,38 @@ def test_downsample_is_a_rounded_2x2_box():
     np.testing.assert_array_equal(texels.downsample(level)[..., 0], [[16, 35]])
 
 
+def test_compiled_texel_loops_equal_the_array_formulas():
+    """The compiled premultiply, box filter and checker loops against their
+    definitions written as numpy array expressions: every (c, a) byte pair,
+    random levels of odd, thin and 1x1 sizes, non-square checkers."""
+    c, a = np.meshgrid(np.arange(256), np.arange(256))
+    straight = np.stack([c, 255 - c, c // 2, a], axis=-1).astype(np.uint8)              # (256, 256, 4)
+    expected = straight.astype(np.int32)
+    expected[..., :3] = (expected[..., :3] * expected[..., 3:4] * 2 + 255) // 510
+    np.testing.assert_array_equal(texels.premultiply_rgba8(straight), expected)
+
+    def box(level):
+        h, w = level.shape[:2]
+        nh, nw, fy, fx = max(1, h // 2), max(1, w // 2), 2 if h > 1 else 1, 2 if w > 1 else 1
+        x = level.astype(np.int32)[:nh * fy, :nw * fx]
+        return (x.reshape(nh, fy, nw, fx, -1).sum(axis=(1, 3)) + fy * fx // 2) // (fy * fx)
+
+    rng = np.random.default_rng(5)
+    for shape in [(1, 1, 4), (1, 9, 4), (7, 1, 4), (3, 5, 4), (33, 18, 4), (64, 64, 4), (6, 4, 1)]:
+        level = rng.integers(0, 256, size=shape, dtype=np.uint8)
+        got = texels.downsample(level)
+        assert got.dtype == np.uint8
+        np.testing.assert_array_equal(got, box(level))
+    for width, height, squares in [(4, 4, 2), (7, 5, 3), (100, 30, 7), (1, 1, 1), (64, 96, 8)]:
+        colors = [0.2, 0.4, 0.6, 1.0], [0.9, 0.1, 0.5, 0.5]
+        tex = texels.procedural_texels("checker", (width, height),
+                                       {"squares": squares, "color0": colors[0], "color1": colors[1]})
+        odd = ((np.arange(height)[:, None] * squares // height + np.arange(width)[None, :] * squares // width)
+               % 2).astype(bool)
+        bytes0, bytes1 = (np.rint(np.asarray(color) * 255).astype(np.uint8) for color in colors)
+        np.testing.assert_array_equal(tex, np.where(odd[..., None], bytes1, bytes0))
+
+
 def test_mip_memory_is_four_thirds():
     """The lecture's figure: a full mip chain costs at most 1/3 more than level 0."""
     chain = texels.mip_chain(np.zeros((256, 256, 4), np.uint8))
