@@ -436,7 +436,6 @@ def _setup_range(start, stop, vertex_f, vertex_i, indices, source, slot, fan_cli
         det = dx1 * dy2 - dx2 * dy1
         tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
         tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
-        vertex_colors, corner_colors, vertex_uvs, corner_uvs = attributes
         _corner_values(vertex_colors, corner_colors, t, indices, source, slot, fan_weights,
                        tri_i[t, _I_SWAP])
         if vertex_uvs.shape[0]:
