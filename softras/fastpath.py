@@ -60,7 +60,7 @@ import numpy as np
 
 from . import clip as clip_stage
 from . import ops, setup, texture, vertex
-from .ops import blend_unorm8, unorm8
+from .ops import blend_byte, unorm8
 from .scene import Scene, ordered_draws
 from .texture import WRAP_CODES, wrap_index
 
@@ -193,7 +193,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
     draw_tiles = _DRAW_TILES[len(offsets), textured]
     draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                offsets, positions, color, color.view(np.uint32)[..., 0], depth,
+                offsets, positions, color.view(np.uint32)[..., 0], depth,
                 ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
                 tex_params, levels_flat, levels_flat.view(np.uint32), level_table, n_threads)
 
@@ -715,21 +715,19 @@ def _make_draw_tiles(n_samples: int, textured: bool):
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                   offsets, positions, color, color32, depth, depth_func, depth_write, blend,
+                   offsets, positions, color32, depth, depth_func, depth_write, blend,
                    tex_params, texels, texels32, table, n_threads):
         """Rasterize, shade and apply every binned triangle, tiles in parallel.
 
-        color : (H, W, S, 4) uint8 (color32: the same memory as (H, W, S) RGBA8
-        words), depth : (H, W, S) int32 (see the module docstring), updated in place.
+        color32 : the (H, W, S, 4) uint8 colour buffer seen as (H, W, S) RGBA8
+        words (R in the low byte), depth : (H, W, S) int32 (see the module
+        docstring), updated in place.
         texels / texels32 : a texture's levels as bytes and as RGBA8 words.
         Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
         so a scene covering only part of the picture still keeps every thread busy).
         """
         n_tiles = bin_start.shape[0] - 1
         for r in numba.prange(n_threads):
-            src = np.empty(4, np.int64)          # fragment bytes (ops.unorm8)
-            dst = np.empty(4, np.int64)          # stored bytes
-            out = np.empty(4, np.int64)          # blended bytes
             texel = np.empty((2, 4))             # float-weight filtering: the two levels' RGBA
             lf = np.zeros((_NLF, 2 * LANES))                # lane rows (see above)
             li = np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64)
@@ -737,10 +735,10 @@ def _make_draw_tiles(n_samples: int, textured: bool):
             edges = np.zeros((3, n_samples), np.int64)      # a row's edge functions per sample
             # (Grouped in tuples: CPython 3.11 passes a call with over 30
             # arguments as *args, which numba cannot inline.)
-            buffers = (src, dst, out, texel, lf, li, lu, edges)
+            buffers = (texel, lf, li, lu, edges)
             for tile in range(r, n_tiles, n_threads):
                 _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                      offsets, positions, color, color32, depth, (depth_func, depth_write, blend),
+                      offsets, positions, color32, depth, (depth_func, depth_write, blend),
                       (tex_params, texels, texels32, table), buffers, n_samples, textured)
 
     return draw_tiles
@@ -748,7 +746,7 @@ def _make_draw_tiles(n_samples: int, textured: bool):
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-          offsets, positions, color, color32, depth, state, tex, buffers, n_samples, textured):
+          offsets, positions, color32, depth, state, tex, buffers, n_samples, textured):
     """One 64x64 tile: its triangles in draw order; per triangle the 8x8 blocks
     of its bounding box inside the tile with the exact early-out / early-in
     corner test of `softras.rasterize`; then in lanes: the covered pixels of
@@ -761,7 +759,7 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
     texels as bytes, as RGBA8 words, level table); buffers : the thread's
     scratch arrays (see `_make_draw_tiles`)."""
     depth_func, depth_write, blend = state
-    lf, li, edges = buffers[4], buffers[5], buffers[7]
+    lf, li, edges = buffers[1], buffers[2], buffers[4]
     full_mask = (1 << n_samples) - 1
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
@@ -830,7 +828,7 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                             if quad_mask:
                                 n += 4
                     if n:
-                        _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32,
+                        _textured_block(n, t, tri_f, colors, uv, positions, depth, color32,
                                         depth_func, write_z, blend, tex, buffers, n_samples)
                     continue
                 # Untextured: the block's part of the box listed as lanes, the
@@ -861,23 +859,23 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                         n += mask != 0
                 n_flat = n
                 if n_flat >= LANES:
-                    _flat_block(n_flat, t, tri_f, colors, positions, depth, color, color32, depth_func,
+                    _flat_block(n_flat, t, tri_f, colors, positions, depth, color32, depth_func,
                                 write_z, blend, buffers, n_samples)
                     n_flat = 0
         if n_flat:
-            _flat_block(n_flat, t, tri_f, colors, positions, depth, color, color32, depth_func, write_z,
+            _flat_block(n_flat, t, tri_f, colors, positions, depth, color32, depth_func, write_z,
                         blend, buffers, n_samples)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _flat_block(n, t, tri_f, colors, positions, depth, color, color32, depth_func, write_z, blend,
+def _flat_block(n, t, tri_f, colors, positions, depth, color32, depth_func, write_z, blend,
                 buffers, n_samples):
     """Depth-test, shade and write the n lanes (covered pixels, listed by
     `_tile` with pixel and coverage mask) of one untextured triangle in one
     8x8 block: depths (vectorised), the depth test keeping the lanes with a
     passed sample (scalar, without branches), perspective weights and colour
     bytes (vectorised), the writes (scalar)."""
-    src, dst, out, texel, lf, li, lu, edges = buffers
+    texel, lf, li, lu, edges = buffers
     _lane_depths(n, t, tri_f, positions, li, n_samples)
     kept = 0
     for l in range(n):
@@ -901,8 +899,7 @@ def _flat_block(n, t, tri_f, colors, positions, depth, color, color32, depth_fun
         li[_LI_WORD, l] = _shade_word(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
                                       ca0, ca1, ca2, 1.0, 1.0, 1.0, 1.0)
     for l in range(kept):
-        _write_word(color, color32, li[_LI_PY, l], li[_LI_PX, l], li[_LI_PASS, l], n_samples, blend,
-                    li[_LI_WORD, l], src, dst, out)
+        _write_word(color32, li[_LI_PY, l], li[_LI_PX, l], li[_LI_PASS, l], n_samples, blend, li[_LI_WORD, l])
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -962,22 +959,22 @@ def _depth_pass_k(func, k, stored):
 
 
 @numba.njit(cache=True, inline="always")
-def _write_word(color, color32, py, px, p, n_samples, blend, word, src, dst, out):
-    """Store (blend == 0: one 32-bit store per sample) or blend (`ops.blend_unorm8`)
-    the fragment's RGBA8 word (R in the low byte) into the samples of pixel
-    (px, py) set in mask p."""
+def _write_word(color32, py, px, p, n_samples, blend, word):
+    """Store (blend == 0: one 32-bit store per sample) or blend (`ops.blend_byte`
+    per channel, as `ops.blend_unorm8`) the fragment's RGBA8 word (R in the
+    low byte) into the samples of pixel (px, py) set in mask p."""
+    alpha = (word >> 24) & 255
     for s in range(n_samples):
         if not (p >> s) & 1:
             continue
         if blend == 0:
             color32[py, px, s] = np.uint32(word)
         else:
+            stored = np.int64(color32[py, px, s])
+            blended = 0
             for c in range(4):
-                src[c] = (word >> (8 * c)) & 255
-                dst[c] = color[py, px, s, c]
-            blend_unorm8(blend, src, dst, out)
-            for c in range(4):
-                color[py, px, s, c] = np.uint8(out[c])
+                blended |= blend_byte(blend, (word >> (8 * c)) & 255, (stored >> (8 * c)) & 255, alpha) << (8 * c)
+            color32[py, px, s] = np.uint32(blended)
 
 
 @numba.njit(cache=True, inline="always")
@@ -992,7 +989,7 @@ def _wrap_select(i, size, mode):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, depth_func, write_z, blend,
+def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z, blend,
                     tex, buffers, n_samples):
     """Shade the n lanes (n / 4 quads, listed by `_tile` with pixel, centre and
     coverage) of one textured triangle in one 8x8 block.
@@ -1002,7 +999,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
     the quad's; every lane's own (s, t) is its pixel's.  Lanes outside the
     triangle are the quad's helper pixels: computed, never written."""
     tex_params, texels, texels32, table = tex
-    src, dst, out, texel, lf, li, lu, edges = buffers
+    texel, lf, li, lu, edges = buffers
     cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
     cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
     cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
@@ -1084,8 +1081,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color, color32, d
     for l in range(n):
         p = li[_LI_PASS, l]
         if p:
-            _write_word(color, color32, li[_LI_PY, l], li[_LI_PX, l], p, n_samples, blend, li[_LI_WORD, l],
-                        src, dst, out)
+            _write_word(color32, li[_LI_PY, l], li[_LI_PX, l], p, n_samples, blend, li[_LI_WORD, l])
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

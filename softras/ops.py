@@ -135,28 +135,30 @@ def blend_unorm8(mode, src, dst, out):
     like every other factor pair (lp_build_blend's lerp shortcut for
     complementary factors is not taken for it in llvmpipe's AoS blend).
     """
-    alpha = src[3]
-    inv_alpha = 255 - alpha
     for ch in range(4):
-        s = src[ch]
-        d = dst[ch]
-        if mode == 0:
-            v = s
-        elif mode == 1:
-            v = min(s + mul_unorm8(d, inv_alpha), 255)
-        elif mode == 2:
-            v = min(mul_unorm8(s, alpha) + mul_unorm8(d, inv_alpha), 255)
-        elif mode == 3:
-            v = min(s + d, 255)
-        elif mode == 4:
-            v = max(s - d, 0)
-        elif mode == 5:
-            v = max(d - s, 0)
-        elif mode == 6:
-            v = min(s, d)
-        else:
-            v = max(s, d)
-        out[ch] = v
+        out[ch] = blend_byte(mode, src[ch], dst[ch], src[3])
+
+
+@numba.njit(cache=True, inline="always")
+def blend_byte(mode, s, d, alpha):
+    """One channel of `blend_unorm8`: fragment byte s over stored byte d, the
+    fragment's alpha byte ``alpha``; returns the result byte (an int)."""
+    inv_alpha = 255 - alpha
+    if mode == 0:
+        return s
+    if mode == 1:
+        return min(s + mul_unorm8(d, inv_alpha), 255)
+    if mode == 2:
+        return min(mul_unorm8(s, alpha) + mul_unorm8(d, inv_alpha), 255)
+    if mode == 3:
+        return min(s + d, 255)
+    if mode == 4:
+        return max(s - d, 0)
+    if mode == 5:
+        return max(d - s, 0)
+    if mode == 6:
+        return min(s, d)
+    return max(s, d)
 
 
 @numba.njit(cache=True)
