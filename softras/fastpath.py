@@ -59,7 +59,7 @@ import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
 from . import clip as clip_stage
-from . import ops, setup, texture, vertex
+from . import ops, setup, texels, texture, vertex
 from .ops import blend_byte, unorm8
 from .scene import Scene, ordered_draws
 from .texture import WRAP_CODES, wrap_index
@@ -224,7 +224,9 @@ def _texture_tables(tex: texture.MipTexture, fixed_point: bool):
         h, w = level.shape[:2]
         table[k] = (at, w, h)
         at += h * w * 4
-    flat = np.concatenate([np.ascontiguousarray(level).reshape(-1) for level in levels])
+    flat = texels.levels_buffer(levels)                     # the mip chain's own buffer, no copy
+    if flat is None:
+        flat = np.concatenate([np.ascontiguousarray(level).reshape(-1) for level in levels])
     mip = 0
     if tex.mipmapped:
         mip = 1 if tex.min_filter.endswith("mipmap_nearest") else 2

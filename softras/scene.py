@@ -164,8 +164,8 @@ class Texture:
         """The texel data both renderers use: the premultiplied mip chain,
         level 0 down to 1x1, each (H_l, W_l, 4) uint8, row 0 = v 0
         (`softras.texels`).  Decoded and built once, on first use."""
-        level0 = texels.premultiply_rgba8(texels.source_texels(self))
-        return tuple(_readonly(level) for level in texels.mip_chain(level0))
+        chain = texels.mip_chain(texels.source_texels(self), premultiply=True)
+        return tuple(_readonly(level) for level in chain)
 
 
 @dataclass(frozen=True, eq=False)

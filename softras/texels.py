@@ -15,7 +15,11 @@ bytes, and glref needs no module of softras but `softras.scene`.
   the rounded mean of a 2x2 box of the level above (2x1 or 1x1 where the level
   above is one texel thin).  With an odd size the last row or column of the
   level above has no box and is skipped: that is what a 2x2 box with
-  ``floor(size / 2)`` means.
+  ``floor(size / 2)`` means.  The levels are views of one buffer, back to
+  back (:func:`levels_buffer`: the fast path samples them without a copy).
+
+The per-texel loops are compiled (numba): a new scene's texture costs both
+renderers its premultiplication and mip chain.
 """
 
 from __future__ import annotations
@@ -128,24 +132,25 @@ def _checker(width, height, squares, color0, color1):
 _PREMULTIPLIED = ((np.arange(256)[None, :] * np.arange(256)[:, None] * 2 + 255) // 510).astype(np.uint8).ravel()
 
 
-def premultiply_rgba8(straight: np.ndarray) -> np.ndarray:
+def premultiply_rgba8(straight: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Straight (..., 4) uint8 RGBA -> premultiplied uint8, ``round(c * a / 255)``
-    (``(2 c a + 255) // 510``: halves round up)."""
+    (``(2 c a + 255) // 510``: halves round up); into ``out`` (same shape) when given."""
     straight = np.ascontiguousarray(straight, np.uint8)
-    return _premultiply(straight.reshape(-1, 4), _PREMULTIPLIED).reshape(straight.shape)
+    if out is None:
+        out = np.empty_like(straight)
+    _premultiply(straight.reshape(-1, 4), _PREMULTIPLIED, out.reshape(-1, 4))
+    return out
 
 
 @numba.njit(cache=True)
-def _premultiply(texels, table):
-    """(N, 4) uint8 straight -> premultiplied, through the table (a * 256 + c)."""
-    out = np.empty_like(texels)
+def _premultiply(texels, table, out):
+    """(N, 4) uint8 straight -> out (N, 4) premultiplied, through the table (a * 256 + c)."""
     for i in range(texels.shape[0]):
         row = np.int64(texels[i, 3]) * 256
         out[i, 0] = table[row + texels[i, 0]]
         out[i, 1] = table[row + texels[i, 1]]
         out[i, 2] = table[row + texels[i, 2]]
         out[i, 3] = texels[i, 3]
-    return out
 
 
 def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
@@ -164,18 +169,20 @@ def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
 def downsample(level: np.ndarray) -> np.ndarray:
     """The next mip level: 2x2 box (2x1 / 1x2 where the level is one texel thin),
     rounded to nearest (halves up).  (H, W, C) uint8 -> uint8."""
-    return _downsample(np.ascontiguousarray(level, np.uint8))
+    h, w, channels = level.shape
+    out = np.empty((max(1, h // 2), max(1, w // 2), channels), np.uint8)
+    _downsample(np.ascontiguousarray(level, np.uint8), out)
+    return out
 
 
 @numba.njit(cache=True)
-def _downsample(level):
-    """`downsample` of a C-contiguous (H, W, C) uint8 level."""
+def _downsample(level, out):
+    """`downsample` of a C-contiguous (H, W, C) uint8 level into out (H // 2, W // 2, C)."""
     h, w, channels = level.shape
-    nh, nw = max(1, h // 2), max(1, w // 2)
+    nh, nw = out.shape[0], out.shape[1]
     fy = 2 if h > 1 else 1
     fx = 2 if w > 1 else 1
     n = fy * fx
-    out = np.empty((nh, nw, channels), np.uint8)
     for j in range(nh):
         for i in range(nw):
             for c in range(channels):
@@ -184,12 +191,42 @@ def _downsample(level):
                     for dx in range(fx):
                         total += np.uint32(level[j * fy + dy, i * fx + dx, c])
                 out[j, i, c] = (total + np.uint32(n // 2)) // np.uint32(n)
-    return out
 
 
-def mip_chain(level0: np.ndarray) -> tuple[np.ndarray, ...]:
-    """All levels from level 0 down to 1x1 (see :func:`downsample`)."""
-    levels = [np.ascontiguousarray(level0)]
-    while levels[-1].shape[:2] != (1, 1):
-        levels.append(downsample(levels[-1]))
+def mip_chain(level0: np.ndarray, premultiply: bool = False) -> tuple[np.ndarray, ...]:
+    """All levels from level 0 (H, W, C) uint8 down to 1x1 (see :func:`downsample`),
+    level 0 premultiplied first when ``premultiply`` (C = 4, straight RGBA in).
+
+    The levels lie back to back in one buffer, each a view of it
+    (:func:`levels_buffer`), so that a renderer can take them all at once.
+    """
+    level0 = np.ascontiguousarray(level0, np.uint8)
+    h, w, channels = level0.shape
+    sizes = mip_sizes(w, h)
+    buffer = np.empty(sum(sw * sh for sw, sh in sizes) * channels, np.uint8)
+    levels, at = [], 0
+    for sw, sh in sizes:
+        levels.append(buffer[at:at + sw * sh * channels].reshape(sh, sw, channels))
+        at += sw * sh * channels
+    if premultiply:
+        premultiply_rgba8(level0, levels[0])
+    else:
+        levels[0][...] = level0
+    for above, level in zip(levels, levels[1:]):
+        _downsample(above, level)
     return tuple(levels)
+
+
+def levels_buffer(levels) -> np.ndarray | None:
+    """The flat uint8 buffer that ``levels`` (level 0 first) lie back to back
+    in from its start, as :func:`mip_chain` lays them out, or None."""
+    buffer = levels[0].base
+    if buffer is None or buffer.ndim != 1 or buffer.dtype != np.uint8:
+        return None
+    start = buffer.__array_interface__["data"][0]
+    at = start
+    for level in levels:
+        if not level.flags.c_contiguous or level.__array_interface__["data"][0] != at:
+            return None
+        at += level.nbytes
+    return buffer[:at - start]

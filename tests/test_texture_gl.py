@@ -39,9 +39,9 @@ def solid_levels(monkeypatch):
     """Mip level k of every texture is the solid colour PALETTE[k]."""
     real_chain = texels.mip_chain
 
-    def chain(level0):
+    def chain(level0, premultiply=False):
         levels = []
-        for k, level in enumerate(real_chain(level0)):
+        for k, level in enumerate(real_chain(level0, premultiply)):
             solid = np.empty_like(level)
             solid[..., :3] = PALETTE[k]
             solid[..., 3] = 255

@@ -76,6 +76,24 @@ def test_compiled_texel_loops_equal_the_array_formulas():
         np.testing.assert_array_equal(tex, np.where(odd[..., None], bytes1, bytes0))
 
 
+def test_mip_chain_levels_lie_back_to_back_in_one_buffer():
+    """mip_chain's levels are views of one buffer in level order (`levels_buffer`
+    returns it, what the fast path samples without a copy); premultiply=True
+    equals premultiplying level 0 first."""
+    straight = np.random.default_rng(9).integers(0, 256, size=(12, 20, 4), dtype=np.uint8)
+    chain = texels.mip_chain(straight, premultiply=True)
+    expected = texels.mip_chain(texels.premultiply_rgba8(straight))
+    assert len(chain) == len(expected) == 5
+    for level, want in zip(chain, expected):
+        np.testing.assert_array_equal(level, want)
+    buffer = texels.levels_buffer(chain)
+    np.testing.assert_array_equal(buffer, np.concatenate([level.ravel() for level in chain]))
+    assert all(np.shares_memory(buffer, level) for level in chain)
+    assert texels.levels_buffer(chain[:1]).nbytes == chain[0].nbytes
+    assert texels.levels_buffer(chain[1:]) is None                      # not from the buffer's start
+    assert texels.levels_buffer((chain[0].copy(), chain[1])) is None     # not one buffer
+
+
 def test_mip_memory_is_four_thirds():
     """The lecture's figure: a full mip chain costs at most 1/3 more than level 0."""
     chain = texels.mip_chain(np.zeros((256, 256, 4), np.uint8))
