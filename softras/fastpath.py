@@ -59,9 +59,10 @@ import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
 from . import clip as clip_stage
-from . import ops, setup, texels, texture, vertex
+from . import ops, setup, texture, vertex
 from .ops import blend_byte, unorm8
 from .scene import Scene, ordered_draws
+from .texels import levels_buffer
 from .texture import WRAP_CODES, wrap_index
 
 TILE = 64          # pixels per tile side (binning and the parallel unit)
@@ -224,7 +225,7 @@ def _texture_tables(tex: texture.MipTexture, fixed_point: bool):
         h, w = level.shape[:2]
         table[k] = (at, w, h)
         at += h * w * 4
-    flat = texels.levels_buffer(levels)                     # the mip chain's own buffer, no copy
+    flat = levels_buffer(levels)                    # the mip chain's own buffer, no copy
     if flat is None:
         flat = np.concatenate([np.ascontiguousarray(level).reshape(-1) for level in levels])
     mip = 0
