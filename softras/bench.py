@@ -51,8 +51,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import resource
 import statistics
+import tempfile
 import time
 import tracemalloc
 from dataclasses import asdict, dataclass
@@ -271,9 +273,6 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
 
 def _file_times(scene_dict: dict, options: dict, runs: int) -> tuple[float, float]:
     """Median seconds from the scene file to the image: (softras, glref), interleaved."""
-    import os
-    import tempfile
-
     import softras
     handle, path = tempfile.mkstemp(suffix=".json", prefix="softras-bench-")
     try:

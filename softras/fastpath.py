@@ -686,9 +686,10 @@ def clear(color, depth, clear_bytes):
 
 # ----------------------------------------------------------------------------- the tile kernel
 #
-# Textured draws are shaded per 8x8 block in "lanes": the block's covered 2x2
-# quads are listed (4 lanes per quad, up to 64), then each step runs as one
-# loop over the lanes.  The steps without branches or table look-ups (the
+# Pixels are shaded in "lanes": `_tile` lists an untextured triangle's
+# covered pixels (shaded from LANES of them on, `_flat_block`) or a textured
+# triangle's covered 2x2 quads of one 8x8 block (4 lanes per quad, up to 64,
+# `_textured_block`); then each step runs as one loop over the lanes.  The steps without branches or table look-ups (the
 # perspective weights with their six divisions, depth, texel addresses, the
 # 8.8 filter, the colour bytes) are loops that LLVM compiles to AVX2 (4 or 8
 # lanes per instruction); the depth test, the quad's level of detail, the
@@ -840,14 +841,15 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                 # listed and after the triangle's last block.
                 n = n_flat
                 for py in range(by, by1 + 1):
-                    # The edge functions (`_inside3`) at the row's first pixel,
-                    # then stepped by a * 256 per pixel.
-                    for s in range(n_samples):
-                        sx = bx * 256 + offsets[s, 0]
-                        sy = py * 256 + offsets[s, 1]
-                        edges[0, s] = a0 * (sx - ex0) + b0 * (sy - ey0) - k0
-                        edges[1, s] = a1 * (sx - ex1) + b1 * (sy - ey1) - k1
-                        edges[2, s] = a2 * (sx - ex2) + b2 * (sy - ey2) - k2
+                    if not all_in:
+                        # The edge functions (`_inside3`) at the row's first
+                        # pixel, then stepped by a * 256 per pixel.
+                        for s in range(n_samples):
+                            sx = bx * 256 + offsets[s, 0]
+                            sy = py * 256 + offsets[s, 1]
+                            edges[0, s] = a0 * (sx - ex0) + b0 * (sy - ey0) - k0
+                            edges[1, s] = a1 * (sx - ex1) + b1 * (sy - ey1) - k1
+                            edges[2, s] = a2 * (sx - ex2) + b2 * (sy - ey2) - k2
                     for i in range(bx1 - bx + 1):
                         mask = full_mask
                         if not all_in:
@@ -862,23 +864,23 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                         n += mask != 0
                 n_flat = n
                 if n_flat >= LANES:
-                    _flat_block(n_flat, t, tri_f, colors, positions, depth, color32, depth_func,
+                    _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, depth_func,
                                 write_z, blend, buffers, n_samples)
                     n_flat = 0
         if n_flat:
-            _flat_block(n_flat, t, tri_f, colors, positions, depth, color32, depth_func, write_z,
+            _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z,
                         blend, buffers, n_samples)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _flat_block(n, t, tri_f, colors, positions, depth, color32, depth_func, write_z, blend,
+def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z, blend,
                 buffers, n_samples):
-    """Depth-test, shade and write the n lanes (covered pixels, listed by
-    `_tile` with pixel and coverage mask) of one untextured triangle in one
-    8x8 block: depths (vectorised), the depth test keeping the lanes with a
-    passed sample (scalar, without branches), perspective weights and colour
-    bytes (vectorised), the writes (scalar)."""
-    texel, lf, li, lu, edges = buffers
+    """Depth-test, shade and write the n lanes (covered pixels of one
+    untextured triangle, listed by `_tile` with pixel and coverage mask):
+    depths (vectorised), the depth test keeping the lanes with a passed
+    sample (scalar, without branches), perspective weights and colour bytes
+    (vectorised), the writes (scalar)."""
+    lf, li = buffers[1], buffers[2]
     _lane_depths(n, t, tri_f, positions, li, n_samples)
     kept = 0
     for l in range(n):
@@ -890,19 +892,60 @@ def _flat_block(n, t, tri_f, colors, positions, depth, color32, depth_func, writ
         lf[_LF_CX, kept] = px + 0.5
         lf[_LF_CY, kept] = py + 0.5
         kept += p != 0
+    _lane_weights(kept, t, tri_f, lf, uv, False)
+    _lane_words(kept, t, colors, lf, li, False)
+    _write_lanes(kept, li, color32, blend, n_samples)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lane_weights(n, t, tri_f, lf, uv, textured):
+    """Perspective weights of triangle t at the n lanes' pixel centres
+    (`_weights_at`) into the _LF_W rows and, when textured, its (s, t) there
+    (uv (T, 3, 2) at the corners) into the _LF_S / _LF_T rows (a vectorised loop)."""
+    x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
+    y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
+    iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
+    u0 = u1 = u2 = v0 = v1 = v2 = 0.0
+    if textured:                        # (an untextured draw's uv is a (1, 3, 2) placeholder)
+        u0, u1, u2 = uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]
+        v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
+    for l in range(n):
+        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, lf[_LF_CX, l], lf[_LF_CY, l])
+        lf[_LF_W, l] = w0
+        lf[_LF_W + 1, l] = w1
+        lf[_LF_W + 2, l] = w2
+        if textured:
+            lf[_LF_S, l] = w0 * u0 + w1 * u1 + w2 * u2
+            lf[_LF_T, l] = w0 * v0 + w1 * v1 + w2 * v2
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lane_words(n, t, colors, lf, li, textured):
+    """The fragment colour of the n lanes as llvmpipe's bytes (`_shade_word`:
+    triangle t's corner colours under the _LF_W weights, times the _LF_TEX
+    texel when textured), one RGBA8 word each into the _LI_WORD row (a
+    vectorised loop)."""
     cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
     cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
     cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
     ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
-    x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
-    y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
-    iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
-    for l in range(kept):
-        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, lf[_LF_CX, l], lf[_LF_CY, l])
-        li[_LI_WORD, l] = _shade_word(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2,
-                                      ca0, ca1, ca2, 1.0, 1.0, 1.0, 1.0)
-    for l in range(kept):
-        _write_word(color32, li[_LI_PY, l], li[_LI_PX, l], li[_LI_PASS, l], n_samples, blend, li[_LI_WORD, l])
+    for l in range(n):
+        tr = lf[_LF_TEX, l] if textured else 1.0
+        tg = lf[_LF_TEX + 1, l] if textured else 1.0
+        tb = lf[_LF_TEX + 2, l] if textured else 1.0
+        ta = lf[_LF_TEX + 3, l] if textured else 1.0
+        li[_LI_WORD, l] = _shade_word(lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l],
+                                      cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2, tr, tg, tb, ta)
+
+
+@numba.njit(cache=True, inline="always")
+def _write_lanes(n, li, color32, blend, n_samples):
+    """Store or blend the n lanes' RGBA8 words into their passed samples
+    (`_write_word` per lane, scalar)."""
+    for l in range(n):
+        p = li[_LI_PASS, l]
+        if p:
+            _write_word(color32, li[_LI_PY, l], li[_LI_PX, l], p, n_samples, blend, li[_LI_WORD, l])
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -1002,27 +1045,11 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
     the quad's; every lane's own (s, t) is its pixel's.  Lanes outside the
     triangle are the quad's helper pixels: computed, never written."""
     tex_params, texels, texels32, table = tex
-    texel, lf, li, lu, edges = buffers
-    cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
-    cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
-    cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
-    ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
-    x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
-    y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
-    iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
-    u0, u1, u2 = uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]
-    v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
+    texel, lf, li, lu = buffers[0], buffers[1], buffers[2], buffers[3]
     wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
     fixed8 = tex_params[_T_FIXED] != 0
     vectorised = tex_params[_T_VEC] != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
-    # Perspective weights and (s, t) at every lane's centre (vectorised).
-    for l in range(n):
-        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, lf[_LF_CX, l], lf[_LF_CY, l])
-        lf[_LF_W, l] = w0
-        lf[_LF_W + 1, l] = w1
-        lf[_LF_W + 2, l] = w2
-        lf[_LF_S, l] = w0 * u0 + w1 * u1 + w2 * u2
-        lf[_LF_T, l] = w0 * v0 + w1 * v1 + w2 * v2
+    _lane_weights(n, t, tri_f, lf, uv, True)               # weights and (s, t), vectorised
     _lane_depths(n, t, tri_f, positions, li, n_samples)          # (vectorised)
     # Depth test (scalar), then the level of detail of each quad with a passed sample.
     block_passed = 0
@@ -1075,16 +1102,9 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
         for l in range(n):
             if li[_LI_PASS, l]:
                 _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8)
-    # The fragment colour as llvmpipe's bytes, one RGBA8 word per lane (vectorised) ...
-    for l in range(n):
-        li[_LI_WORD, l] = _shade_word(lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l],
-                                      cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2,
-                                      lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l])
-    # ... blended in 8-bit integers and written (`ops.apply_fragments`).
-    for l in range(n):
-        p = li[_LI_PASS, l]
-        if p:
-            _write_word(color32, li[_LI_PY, l], li[_LI_PX, l], p, n_samples, blend, li[_LI_WORD, l])
+    # The fragment colour as llvmpipe's bytes, blended and written (`ops.apply_fragments`).
+    _lane_words(n, t, colors, lf, li, True)
+    _write_lanes(n, li, color32, blend, n_samples)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

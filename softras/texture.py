@@ -486,8 +486,6 @@ def llvmpipe_aniso_levels(du: np.ndarray, dv: np.ndarray, n_levels: int) -> np.n
     return np.clip(np.trunc(lod), 0, n_levels - 1).astype(np.int64)
 
 
-
-
 @dataclass(frozen=True)
 class FlatLevels:
     """Mip levels packed into one array for the compiled kernels.
