@@ -132,29 +132,21 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     offsets, _ = setup.sample_offsets(positions, "gl")
     shape = (scene.height, scene.width, len(positions))
     depth = _scratch.take("depth", shape, np.int32)
-    color = _scratch.take("color", shape + (4,), np.uint8) if reuse else None
-    color, depth = new_framebuffer(scene.width, scene.height, len(positions), scene.background, depth, color)
+    color = _scratch.take("color", shape + (4,), np.uint8) if reuse else np.empty(shape + (4,), np.uint8)
     offsets = np.ascontiguousarray(offsets, np.int64)
     positions = np.ascontiguousarray(positions, np.float64)
+    clear(color, depth, background_bytes(scene.background))
     for draw in ordered_draws(scene):
         draw_triangles(scene, draw, color, depth, offsets, positions, texture_fixed_point)
     return color
 
 
-def new_framebuffer(width: int, height: int, samples: int, background, depth: np.ndarray | None = None,
-                    color: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(color (H, W, S, 4) uint8, depth (H, W, S) int32) cleared as `ops.new_framebuffer`
-    with quantize: colour bytes round(clamp(premultiplied background) * 255), depth 1
-    (its integer DEPTH_SCALE) (into ``depth`` and ``color`` when given)."""
+def background_bytes(background) -> np.ndarray:
+    """The clear colour (4,) uint8 as `ops.new_framebuffer` with quantize has
+    it: round(clamp(premultiplied background) * 255)."""
     bg = np.asarray(background, np.float64)
     premultiplied = np.concatenate([bg[:3] * bg[3], bg[3:4]])
-    clear_bytes = np.rint(np.clip(premultiplied, 0.0, 1.0) * 255.0).astype(np.uint8)
-    if color is None:
-        color = np.empty((height, width, samples, 4), np.uint8)
-    if depth is None:
-        depth = np.empty((height, width, samples), np.int32)
-    clear(color, depth, clear_bytes)
-    return color, depth
+    return np.rint(np.clip(premultiplied, 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
 def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture_fixed_point) -> None:
@@ -194,9 +186,27 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
     draw_tiles = _DRAW_TILES[len(offsets), textured]
     draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                offsets, positions, color.view(np.uint32)[..., 0], depth,
+                offsets, positions, color.view(np.uint32).reshape(color.shape[:3]), depth,
                 ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
+                textured and plain_colors(base),
                 tex_params, levels_flat, levels_flat.view(np.uint32), level_table, n_threads)
+
+
+def plain_colors(base: np.ndarray) -> bool:
+    """Whether a textured draw's fragment colour is its texel's bytes as they
+    are: every vertex colour (V, 4, straight, times the material's) is
+    opaque white.
+
+    The fragment colour is then (w0 + w1 + w2)^2 * k / 255 per colour
+    channel and (w0 + w1 + w2) * k / 255 for alpha (`_shade_word`; corner
+    colours of clipped triangles are sums of clip weights, 1 within a few
+    ulp).  At a covered pixel centre the perspective weights are in [0, 1]
+    and sum to 1 within a few ulp, so the value is k/255 within ~1e-15,
+    and `ops.unorm8` gives back k (the product is within ~1e-13 of the
+    integer k, nowhere near a rounding boundary; tests/test_fastpath.py
+    checks every k).  The kernel uses it at one sample only, where the
+    weights are taken at the covered sample itself."""
+    return bool(np.all(base == 1.0))
 
 
 _tables_cache: dict = {}
@@ -623,19 +633,35 @@ def _lerp8(w, a, b):
 
 @numba.njit(cache=True, inline="always")
 def _nan_max(x, y):
-    """np.maximum: NaN if either is NaN."""
-    if x != x or y != y:
-        return x + y
-    return x if x >= y else y
+    """np.maximum: NaN if either is NaN (selects, no branches)."""
+    return x + y if (x != x) | (y != y) else (x if x >= y else y)
 
 
 _FLOAT32_TINY = np.float32(np.finfo(np.float32).tiny)
 
 
+@numba.njit(cache=True, inline="always")
+def _frexp32(x):
+    """math.frexp of a float32 x from its bits: (mantissa in [0.5, 1) as
+    float32, exponent) for a normal x; (x, 0) for inf and NaN as C's frexp
+    gives them.  (Subnormals are not handled: callers pass x >= the
+    smallest normal or only use the exponent of x > 0, where a subnormal's
+    -126 and frexp's lower exponent select the same level.)"""
+    bits = np.int64(np.float32(x).view(np.int32))
+    field = (bits >> 23) & 255
+    special = field == 255
+    mantissa = np.int32((bits & 0x807FFFFF) | 0x3F000000).view(np.float32)
+    return (np.float32(x) if special else mantissa), (0 if special else field - 126)
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, ddy_s, ddy_t):
-    """The level choice of `texture.sample` (gl precision) for one quad's
-    derivatives: (level0, level1, frac, image filter, whether to blend two levels)."""
+    """The level choice of `texture.sample` (gl precision, `texture.choose_levels`)
+    for one quad's derivatives (float32 values): (level0, level1, frac, image
+    filter, whether to blend two levels).  Written with selects only, so that
+    a loop over quads vectorises; lod = +-inf or NaN picks levels as the
+    float -> int64 conversion of numpy and llvmpipe does (the "integer
+    indefinite", negative)."""
     w32 = np.float32(width0)
     h32 = np.float32(height0)
     du0 = np.float32(ddx_s) * w32
@@ -648,29 +674,24 @@ def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, 
     level1 = 0
     frac = 0.0
     if mip == 1:
-        e = math.frexp(np.float64(rho2))[1]             # exponent of the float32 value
-        level = np.int64(e) >> 1 if rho2 > 0 else 0
+        e = _frexp32(rho2)[1]                          # (rho2 > 0: a subnormal's -126 -> level 0 too)
+        level = e >> 1 if rho2 > 0 else 0
         level0 = min(max(level, 0), last)
         level1 = level0
     elif mip == 2:
-        r = _nan_max(rho2, _FLOAT32_TINY)
-        m, e = math.frexp(np.float64(r))
-        m = np.float32(m)
+        m, e = _frexp32(_nan_max(rho2, _FLOAT32_TINY))
         log2 = np.float32(np.float32(e - 1) + (np.float32(2) * m - np.float32(1)))
         lod = np.float32(0.5) * log2
         ipart_f = np.float32(np.floor(lod))
         frac = np.float64(np.float32(lod - ipart_f))
-        ipart = np.int64(ipart_f)
-        if ipart < 0 or ipart >= last:
-            frac = 0.0
+        finite = np.abs(ipart_f) <= np.float32(1e6)     # (|lod| <= 64 when finite)
+        ipart = np.int64(ipart_f if finite else np.float32(-1e6))
+        frac = 0.0 if (ipart < 0) | (ipart >= last) else frac
         level0 = min(max(ipart, 0), last)
         level1 = min(max(ipart + 1, 0), last)
-    if magnified:
-        level0 = 0
-        image_filter = mag_filter
-    else:
-        image_filter = min_filter
-    two = (not magnified) and level1 != level0 and frac > 0
+    level0 = 0 if magnified else level0
+    image_filter = mag_filter if magnified else min_filter
+    two = (not magnified) & (level1 != level0) & (frac > 0)
     return level0, level1, frac, image_filter, two
 
 
@@ -719,7 +740,7 @@ def _make_draw_tiles(n_samples: int, textured: bool):
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                   offsets, positions, color32, depth, depth_func, depth_write, blend,
+                   offsets, positions, color32, depth, depth_func, depth_write, blend, plain,
                    tex_params, texels, texels32, table, n_threads):
         """Rasterize, shade and apply every binned triangle, tiles in parallel.
 
@@ -742,7 +763,7 @@ def _make_draw_tiles(n_samples: int, textured: bool):
             buffers = (texel, lf, li, lu, edges)
             for tile in range(r, n_tiles, n_threads):
                 _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                      offsets, positions, color32, depth, (depth_func, depth_write, blend),
+                      offsets, positions, color32, depth, (depth_func, depth_write, blend, plain),
                       (tex_params, texels, texels32, table), buffers, n_samples, textured)
 
     return draw_tiles
@@ -759,10 +780,11 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
     (`_textured_block`).  The per-pixel arithmetic is `softras.pipeline`'s,
     operation for operation.
 
-    state : (depth function, depth write, blend mode) codes; tex : (params,
+    state : (depth function, depth write, blend mode) codes and whether the
+    draw's colour is the texel's own (`plain_colors`); tex : (params,
     texels as bytes, as RGBA8 words, level table); buffers : the thread's
     scratch arrays (see `_make_draw_tiles`)."""
-    depth_func, depth_write, blend = state
+    depth_func, depth_write, blend, plain = state
     lf, li, edges = buffers[1], buffers[2], buffers[4]
     full_mask = (1 << n_samples) - 1
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
@@ -833,7 +855,7 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                                 n += 4
                     if n:
                         _textured_block(n, t, tri_f, colors, uv, positions, depth, color32,
-                                        depth_func, write_z, blend, tex, buffers, n_samples)
+                                        depth_func, write_z, blend, plain, tex, buffers, n_samples)
                     continue
                 # Untextured: the block's part of the box listed as lanes, the
                 # covered pixels kept without a branch (which pixels a small
@@ -1036,14 +1058,16 @@ def _wrap_select(i, size, mode):
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z, blend,
-                    tex, buffers, n_samples):
+                    plain, tex, buffers, n_samples):
     """Shade the n lanes (n / 4 quads, listed by `_tile` with pixel, centre and
     coverage) of one textured triangle in one 8x8 block.
 
     Per quad the top-left, top-right and bottom-left lanes give the texture
     derivatives (`interpolate.quad_derivatives`) and the level of detail is
     the quad's; every lane's own (s, t) is its pixel's.  Lanes outside the
-    triangle are the quad's helper pixels: computed, never written."""
+    triangle are the quad's helper pixels: computed, never written.  With
+    ``plain`` (`plain_colors`) at one sample the filtered texel's bytes are
+    the fragment's colour word."""
     tex_params, texels, texels32, table = tex
     texel, lf, li, lu = buffers[0], buffers[1], buffers[2], buffers[3]
     wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
@@ -1051,8 +1075,25 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
     vectorised = tex_params[_T_VEC] != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
     _lane_weights(n, t, tri_f, lf, uv, True)               # weights and (s, t), vectorised
     _lane_depths(n, t, tri_f, positions, li, n_samples)          # (vectorised)
-    # Depth test (scalar), then the level of detail of each quad with a passed sample.
+    # The level of detail of every quad (a vectorised loop: `_quad_lod` has
+    # no branches), kept on the quad's first lane.
+    width0, height0, last = table[0, 1], table[0, 2], tex_params[_T_LEVELS] - 1
+    mip, mag_filter, min_filter = tex_params[_T_MIP], tex_params[_T_MAG], tex_params[_T_MIN]
+    for q in range(n >> 2):
+        l = 4 * q
+        s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
+        level0, level1, frac, image_filter, two = _quad_lod(
+            width0, height0, mip, last, mag_filter, min_filter,
+            np.float32(lf[_LF_S, l + 1]) - s_tl, np.float32(lf[_LF_T, l + 1]) - t_tl,
+            np.float32(lf[_LF_S, l + 2]) - s_tl, np.float32(lf[_LF_T, l + 2]) - t_tl)
+        li[_LI_LEVEL, l] = level0
+        li[_LI_LEVEL + 1, l] = level1
+        li[_LI_IMGF, l] = image_filter
+        li[_LI_TWO, l] = two
+        lf[_LF_FRAC, l] = frac
+    # Depth test (scalar); a quad without a passed sample samples level 0 alone.
     block_passed = 0
+    block_two = False                             # a passed quad samples two levels
     for q in range(n >> 2):
         quad_passed = 0
         for l in range(4 * q, 4 * q + 4):
@@ -1061,34 +1102,31 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
             li[_LI_PASS, l] = p
             quad_passed |= p
         block_passed |= quad_passed
-        level0 = level1 = 0
-        frac = 0.0
-        image_filter = tex_params[_T_MAG]
-        two = False
-        if quad_passed:
-            l = 4 * q
-            s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
-            ddx_s = np.float64(np.float32(lf[_LF_S, l + 1]) - s_tl)
-            ddx_t = np.float64(np.float32(lf[_LF_T, l + 1]) - t_tl)
-            ddy_s = np.float64(np.float32(lf[_LF_S, l + 2]) - s_tl)
-            ddy_t = np.float64(np.float32(lf[_LF_T, l + 2]) - t_tl)
-            level0, level1, frac, image_filter, two = _quad_lod(
-                table[0, 1], table[0, 2], tex_params[_T_MIP], tex_params[_T_LEVELS] - 1,
-                tex_params[_T_MAG], tex_params[_T_MIN], ddx_s, ddx_t, ddy_s, ddy_t)
+        l = 4 * q
+        level0, level1 = li[_LI_LEVEL, l], li[_LI_LEVEL + 1, l]
+        image_filter, two, frac = li[_LI_IMGF, l], li[_LI_TWO, l] != 0, lf[_LF_FRAC, l]
+        if not quad_passed:
+            level0 = level1 = 0
+            image_filter = mag_filter
+            two = False
+            frac = 0.0
         w8 = np.int64(np.floor(frac * 256)) if two else 0
+        block_two |= two
         # The quad's levels on its lanes: what each sampler reads.
-        for l in range(4 * q, 4 * q + 4):
-            li[_LI_W8, l] = w8
-            if vectorised:
-                for lv in range(2):
-                    level = level1 if (lv == 1 and two) else level0
-                    lw, lh = table[level, 1], table[level, 2]
-                    li[_LI_BASE + lv, l] = table[level, 0] >> 2
+        if vectorised:
+            for lv in range(2):
+                level = level1 if (lv == 1 and two) else level0
+                lw, lh, base = table[level, 1], table[level, 2], table[level, 0] >> 2
+                scale_s, scale_t = np.float32(lw * 256), np.float32(lh * 256)
+                for l in range(4 * q, 4 * q + 4):
+                    li[_LI_BASE + lv, l] = base
                     li[_LI_LW + lv, l] = lw
                     li[_LI_LH + lv, l] = lh
-                    lf[_LF_SCALE + 2 * lv, l] = np.float32(lw * 256)
-                    lf[_LF_SCALE + 2 * lv + 1, l] = np.float32(lh * 256)
-            else:
+                    lf[_LF_SCALE + 2 * lv, l] = scale_s
+                    lf[_LF_SCALE + 2 * lv + 1, l] = scale_t
+        for l in range(4 * q, 4 * q + 4):
+            li[_LI_W8, l] = w8
+            if not vectorised:
                 li[_LI_LEVEL, l] = level0
                 li[_LI_LEVEL + 1, l] = level1
                 li[_LI_IMGF, l] = image_filter
@@ -1096,25 +1134,32 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
                 lf[_LF_FRAC, l] = frac
     if block_passed == 0:
         return
+    words = plain and n_samples == 1 and vectorised     # texels straight into _LI_WORD
     if vectorised:
-        _lanes_bilinear_fixed(n, lf, li, lu, texels32, wrap_s, wrap_t)
+        if block_two:
+            _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, wrap_s, wrap_t)
+        else:
+            _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, wrap_s, wrap_t)
     else:
         for l in range(n):
             if li[_LI_PASS, l]:
                 _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8)
     # The fragment colour as llvmpipe's bytes, blended and written (`ops.apply_fragments`).
-    _lane_words(n, t, colors, lf, li, True)
+    if not words:
+        _lane_words(n, t, colors, lf, li, True)
     _write_lanes(n, li, color32, blend, n_samples)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _lanes_bilinear_fixed(n, lf, li, lu, texels32, wrap_s, wrap_t):
+def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, wrap_s, wrap_t):
     """`texture.sample` (gl, fixed8, linear image filter, power-of-two or
-    clamped wraps) of every lane on its two levels (the same level twice with
-    mip weight 0 where the quad uses one): addresses and 8.8 weights
-    (`_linear_fixed`, vectorised), the 8 texel fetches (scalar), the lane
-    lerps (vectorised).  Writes the texel as k/255 floats into the _LF_TEX rows."""
-    for lv in range(2):
+    clamped wraps) of every lane on its first level or (n_levels 2) its two
+    levels (the same level twice with mip weight 0 where the quad uses one):
+    addresses and 8.8 weights (`_linear_fixed`, vectorised), the 4 or 8 texel
+    fetches (scalar), the lane lerps (vectorised).  Writes the texel as k/255
+    floats into the _LF_TEX rows, or with ``words`` as its RGBA8 word into
+    the _LI_WORD row."""
+    for lv in range(n_levels):
         for l in range(n):
             lw, lh = li[_LI_LW + lv, l], li[_LI_LH + lv, l]
             scale_s, scale_t = np.float32(lf[_LF_SCALE + 2 * lv, l]), np.float32(lf[_LF_SCALE + 2 * lv + 1, l])
@@ -1130,16 +1175,30 @@ def _lanes_bilinear_fixed(n, lf, li, lu, texels32, wrap_s, wrap_t):
             li[_LI_ADDR + 4 * lv + 1, l] = row0 + i1
             li[_LI_ADDR + 4 * lv + 2, l] = row1 + i0
             li[_LI_ADDR + 4 * lv + 3, l] = row1 + i1
-    for a in range(8):
+    for a in range(4 * n_levels):
         for l in range(n):
             lu[a, l] = _spread(texels32[li[_LI_ADDR + a, l]])
-    for l in range(n):
-        fa0, fb0, fa1, fb1 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l], li[_LI_FRAC8 + 2, l], li[_LI_FRAC8 + 3, l]
-        x = _lerp_lanes(fb0, _lerp_lanes(fa0, lu[0, l], lu[1, l]), _lerp_lanes(fa0, lu[2, l], lu[3, l]))
-        y = _lerp_lanes(fb1, _lerp_lanes(fa1, lu[4, l], lu[5, l]), _lerp_lanes(fa1, lu[6, l], lu[7, l]))
-        x = _lerp_lanes(li[_LI_W8, l], x, y)
-        for c in range(4):
-            lf[_LF_TEX + c, l] = np.float64(_lane(x, c)) / 255.0
+    if n_levels == 2:
+        for l in range(n):
+            fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
+            fa1, fb1 = li[_LI_FRAC8 + 2, l], li[_LI_FRAC8 + 3, l]
+            x = _lerp_lanes(fb0, _lerp_lanes(fa0, lu[0, l], lu[1, l]), _lerp_lanes(fa0, lu[2, l], lu[3, l]))
+            y = _lerp_lanes(fb1, _lerp_lanes(fa1, lu[4, l], lu[5, l]), _lerp_lanes(fa1, lu[6, l], lu[7, l]))
+            lu[0, l] = _lerp_lanes(li[_LI_W8, l], x, y)
+    else:
+        for l in range(n):
+            fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
+            lu[0, l] = _lerp_lanes(fb0, _lerp_lanes(fa0, lu[0, l], lu[1, l]), _lerp_lanes(fa0, lu[2, l], lu[3, l]))
+    # (Separate loops: one loop with a branch on ``words`` compiles to both
+    # sides computed and masked stores.)
+    if words:
+        for l in range(n):
+            x = lu[0, l]
+            li[_LI_WORD, l] = np.int64((x | (x >> np.uint64(24))) & np.uint64(0xFFFFFFFF))   # un-`_spread`
+    else:
+        for l in range(n):
+            for c in range(4):
+                lf[_LF_TEX + c, l] = np.float64(_lane(lu[0, l], c)) / 255.0
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

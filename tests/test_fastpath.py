@@ -68,7 +68,8 @@ def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: 
     from near 0 to 3), random colours with alpha, per-node depth / blend / cull.
     vectorised: textures that the fast path filters in lanes (`_lanes_bilinear_fixed`:
     linear image filters, power-of-two or clamped sizes, both fixed-point wraps),
-    uv up to +-60."""
+    uv up to +-60, and every third node without vertex colours (white: the
+    texel's bytes are the fragment's, `fastpath.plain_colors`)."""
     rng = np.random.default_rng(seed)
     nodes = []
     filters = ["nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
@@ -104,6 +105,8 @@ def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: 
         if vectorised:
             mesh["uvs"] = (rng.uniform(-2, 3, size=(3 * n, 2)) * [[1], [20]][k % 2]).tolist()
             node["material"] = {"texture": f"t{int(rng.integers(4))}"}
+            if k % 3 == 0:
+                del mesh["colors"]
         elif textured:
             mesh["uvs"] = rng.uniform(-2, 3, size=(3 * n, 2)).tolist()
             node["material"] = {"texture": f"t{int(rng.integers(4))}"}
@@ -158,6 +161,15 @@ def test_bench_grid_is_bit_identical():
     assert_same(*both_paths(scene), "bench grid")
 
 
+@pytest.mark.parametrize("samples", [1, 4])
+def test_bench_floor_is_bit_identical(samples):
+    """The trilinear floor: white (`plain_colors`), one level near the camera, two further off."""
+    from softras import bench
+    scene = softras.load_scene(bench.floor_scene(160))
+    assert fastpath.plain_colors(np.ones((4, 4)) * scene.draws[0].material.color)
+    assert_same(*both_paths(scene, samples=samples), f"bench floor, {samples} samples")
+
+
 # ----------------------------------------------------------------------------- kernel pieces
 
 
@@ -170,6 +182,58 @@ def test_branch_free_wrap_equals_wrap_index():
         for size in (1, 2, 4, 8, 64, 4096) + ((3, 7, 13, 100) if mode == WRAP_CODES["clamp_to_edge"] else ()):
             for i in indices:
                 assert fastpath._wrap_select(i, size, mode) == wrap_index(i, size, mode), (i, size, mode)
+
+
+def test_plain_colors_give_the_texel_bytes():
+    """`plain_colors`: the fragment colour of white corners, (w0 + w1 + w2)^2 k/255
+    (alpha (w0 + w1 + w2) k/255) through `ops.unorm8`, is the texel byte k for
+    every k when the weights' sum is 1 within far more than a few ulp."""
+    from softras.ops import unorm8
+    k = np.arange(256)
+    for sum_of_weights in 1 + np.array([0.0, 1e-12, -1e-12, 2.0**-52, -2.0**-53, 7 * 2.0**-52, -9 * 2.0**-53]):
+        for value in (sum_of_weights * sum_of_weights * (k / 255.0), sum_of_weights * (k / 255.0)):
+            assert [unorm8(v) for v in value] == k.tolist(), sum_of_weights
+    assert fastpath.plain_colors(np.ones((5, 4)))
+    assert not fastpath.plain_colors(np.array([[1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 0.999]]))
+
+
+def test_frexp32_equals_math_frexp():
+    """`_frexp32` (bits) = math.frexp for normal float32s, (x, 0) for inf / NaN."""
+    import math
+    rng = np.random.default_rng(3)
+    values = np.concatenate([np.float32([1.1754944e-38, 3.4028235e38, 1, 0.5, 0.75, 2, 1e-30]),
+                             (10.0 ** rng.uniform(-37, 38, 2000)).astype(np.float32)])
+    for x in values:
+        m, e = fastpath._frexp32(x)
+        assert (float(m), e) == math.frexp(float(x)), x
+    for x in np.float32([np.inf, np.nan]):
+        m, e = fastpath._frexp32(x)
+        assert e == 0 and (m == x or (m != m and x != x))
+
+
+def test_quad_lod_equals_choose_levels():
+    """`_quad_lod` (selects, bit tricks) = `texture.choose_levels` (gl) on random
+    derivatives over 50 octaves, zero, subnormal, huge, inf and NaN ones."""
+    from softras import texture
+    rng = np.random.default_rng(4)
+    specials = np.float32([0, 1e-42, 1e-20, 1 / 256, 1, 3e19, 3e38, np.inf, -np.inf, np.nan])
+    d = (rng.standard_normal((3000, 4)) * 2.0 ** rng.integers(-30, 20, (3000, 1))).astype(np.float32)
+    d[:400] = specials[rng.integers(len(specials), size=(400, 4))]
+    for mip, min_filter in ((0, "linear"), (1, "linear_mipmap_nearest"), (2, "linear_mipmap_linear")):
+        width, height, n_levels = 64, 16, 7
+        with np.errstate(all="ignore"):
+            du = d[:, :2] * np.float32([width, height])
+            dv = d[:, 2:] * np.float32([width, height])
+            choice = texture.choose_levels(texture.rho_squared(du, dv), min_filter, n_levels, gl=True)
+        for i in range(len(d)):
+            level0, level1, frac, image_filter, two = fastpath._quad_lod(width, height, mip, n_levels - 1, 0, 1,
+                                                                         *d[i])
+            magnified = bool(choice.magnified[i])
+            assert image_filter == (0 if magnified else 1), d[i]
+            assert level0 == (0 if magnified else choice.level0[i]), (d[i], mip)
+            if not magnified:
+                assert (level1, frac) == (choice.level1[i], choice.frac[i]), (d[i], mip)
+            assert two == (not magnified and choice.level1[i] != choice.level0[i] and choice.frac[i] > 0)
 
 
 def test_integer_depth_test_equals_the_float_depth_test():
