@@ -225,13 +225,37 @@ def resolve_llvmpipe(color: np.ndarray) -> np.ndarray:
     ``round_half_even(m * 255)`` in float32.  Its rounding differs from the
     exact mean's on some partly covered pixels by 1/255.
     """
-    stored = np.rint(np.clip(color, 0.0, 1.0) * 255.0).astype(np.float32)
-    values = stored * np.float32(1.0 / 255.0)                       # float32 products
-    total = np.zeros(color.shape[:2] + (4,), np.float32)
-    for s in range(color.shape[2]):
-        total += values[:, :, s]                                     # float32 sums, in order
-    mean = total * np.float32(1.0 / color.shape[2])
-    return np.rint(np.clip(mean * np.float32(255.0), 0, 255)).astype(np.uint8)
+    return resolve_llvmpipe_bytes(np.rint(np.clip(color, 0.0, 1.0) * 255.0).astype(np.uint8))[::-1]
+
+
+def resolve_llvmpipe_bytes(stored: np.ndarray) -> np.ndarray:
+    """`resolve_llvmpipe` of the stored bytes themselves: (H, W, S, 4) uint8
+    (y-up) -> (H, W, 4) uint8 with row 0 = the top of the picture.  A
+    compiled loop per pixel and channel, no float arrays of the sample
+    buffer's size (the fast path's MSAA buffers are bytes)."""
+    stored = np.ascontiguousarray(stored, np.uint8)
+    out = np.empty(stored.shape[:2] + (4,), np.uint8)
+    _resolve_bytes(stored, out)
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _resolve_bytes(stored, out):
+    """out[H - 1 - y, x] = llvmpipe's float32 resolve of stored[y, x] (see
+    `resolve_llvmpipe`): v * (1/255) summed in sample order, times 1/S, times
+    255, clamped, rounded half to even; every step in float32."""
+    height, width, n_samples = stored.shape[0], stored.shape[1], stored.shape[2]
+    inv_255 = np.float32(1.0 / 255.0)
+    inv_n = np.float32(1.0 / n_samples)
+    for y in numba.prange(height):
+        for x in range(width):
+            for c in range(4):
+                total = np.float32(0.0)
+                for s in range(n_samples):
+                    total += np.float32(stored[y, x, s, c]) * inv_255
+                value = np.float32(np.float32(total * inv_n) * np.float32(255.0))
+                value = min(max(value, np.float32(0.0)), np.float32(255.0))
+                out[height - 1 - y, x, c] = np.uint8(np.rint(value))
 
 
 def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: str = "box",
@@ -262,7 +286,7 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
     if output not in ("uint8", "float32"):
         raise ValueError(f"resolve: output must be 'uint8' or 'float32', not {output!r}")
     if arithmetic == "llvmpipe" and filter == "box" and output == "uint8":
-        return resolve_llvmpipe(color)[::-1].copy()
+        return resolve_llvmpipe_bytes(np.rint(np.clip(color, 0.0, 1.0) * 255.0).astype(np.uint8))
     if filter == "box":
         mean = color.mean(axis=2, dtype=np.float64)
     else:

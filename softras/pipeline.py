@@ -182,6 +182,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                                          reuse=True)        # copied below
         if n_samples == 1 and resolve_filter == "box":
             return stored[::-1, :, 0].copy()        # the resolve of one RGBA8 sample is its bytes
+        if resolve_filter == "box":                 # GL's resolve, from the bytes
+            return ops.resolve_llvmpipe_bytes(stored)
         color = stored / 255.0                      # the stages' k/255 sample values
     for start, stop in ([] if fast else sample_passes(n_samples)):
         part = _render_pass(scene, positions[start:stop], precision=precision, rgba8=rgba8,
