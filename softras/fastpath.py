@@ -602,6 +602,7 @@ _BYTE_VALUES = np.arange(256) / 255.0
 # filters all four channels: see `_lerp_lanes`.
 _LANES = np.uint64(0x00FF00FF00FF00FF)
 _HALF_LANES = np.uint64(0x0080008000800080)
+_ONE_LANES = np.uint64(0x0001000100010001)
 
 
 @numba.njit(cache=True, inline="always")
@@ -1038,11 +1039,40 @@ def _write_word(color32, py, px, p, n_samples, blend, word):
         if blend == 0:
             color32[py, px, s] = np.uint32(word)
         else:
-            stored = np.int64(color32[py, px, s])
-            blended = 0
-            for c in range(4):
-                blended |= blend_byte(blend, (word >> (8 * c)) & 255, (stored >> (8 * c)) & 255, alpha) << (8 * c)
-            color32[py, px, s] = np.uint32(blended)
+            color32[py, px, s] = np.uint32(_blend_word(blend, word, np.int64(color32[py, px, s]), alpha))
+
+
+@numba.njit(cache=True, inline="always")
+def _blend_word(blend, word, stored, alpha):
+    """`ops.blend_byte` on each channel of the RGBA8 words (fragment ``word``
+    with alpha byte ``alpha`` over ``stored``).  "over", "over_straight" and
+    "add" run on the four spread lanes at once (`_mul_lanes`, then a
+    saturating add: every lane sum stays below 2^9); the other equations
+    per channel."""
+    if blend == 1 or blend == 2 or blend == 3:
+        src, dst = _spread(word), _spread(stored)
+        if blend == 1:
+            total = src + _mul_lanes(dst, 255 - alpha)
+        elif blend == 2:
+            total = _mul_lanes(src, alpha) + _mul_lanes(dst, 255 - alpha)
+        else:
+            total = src + dst
+        carry = (total >> np.uint64(8)) & _ONE_LANES          # lanes over 255
+        total = (total | (carry * np.uint64(255))) & _LANES
+        return np.int64((total | (total >> np.uint64(24))) & np.uint64(0xFFFFFFFF))     # un-`_spread`
+    blended = 0
+    for c in range(4):
+        blended |= blend_byte(blend, (word >> (8 * c)) & 255, (stored >> (8 * c)) & 255, alpha) << (8 * c)
+    return blended
+
+
+@numba.njit(cache=True, inline="always")
+def _mul_lanes(x, factor):
+    """`ops.mul_unorm8` of each spread lane of x by one factor byte:
+    t = x f, (t + (t >> 8) + 0x80) >> 8 per lane (t < 2^16 per lane, and
+    so is the sum: no carry between lanes)."""
+    t = x * np.uint64(factor)
+    return ((t + ((t >> np.uint64(8)) & _LANES) + _HALF_LANES) >> np.uint64(8)) & _LANES
 
 
 @numba.njit(cache=True, inline="always")

@@ -236,6 +236,24 @@ def test_quad_lod_equals_choose_levels():
             assert two == (not magnified and choice.level1[i] != choice.level0[i] and choice.frac[i] > 0)
 
 
+def test_word_blend_equals_the_per_channel_blend():
+    """`_blend_word` (spread lanes for over, over_straight, add) = `ops.blend_byte`
+    per channel, every mode, on random words and every alpha byte with
+    extreme colour bytes."""
+    from softras.ops import blend_byte
+    rng = np.random.default_rng(5)
+    words = [int(w) for w in rng.integers(0, 2**32, 3000)]
+    words += [(a << 24) | (c * 0x010101) for a in range(256) for c in (0, 1, 127, 254, 255)]
+    stored = [int(w) for w in rng.integers(0, 2**32, len(words))]
+    stored[:256] = [0xFFFFFFFF] * 256
+    for mode in range(8):
+        for word, dst in zip(words, stored):
+            alpha = (word >> 24) & 255
+            expected = sum(blend_byte(mode, (word >> (8 * c)) & 255, (dst >> (8 * c)) & 255, alpha) << (8 * c)
+                           for c in range(4))
+            assert fastpath._blend_word(mode, word, dst, alpha) == expected, (mode, hex(word), hex(dst))
+
+
 def test_integer_depth_test_equals_the_float_depth_test():
     """`_depth_pass_k` on the 24-bit integers k (-1 for NaN) = `ops._depth_pass`
     on the pipeline's depths k / (2^24 - 1), for every function, at the ends,
