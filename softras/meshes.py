@@ -77,14 +77,13 @@ def grid(cols: int, rows: int, size=(1.0, 1.0), corner_colors=None) -> MeshArray
     normals = np.zeros_like(positions)
     normals[:, 2] = 1.0
 
-    i, j = np.meshgrid(np.arange(cols), np.arange(rows))      # cell (i, j)
-    top_left = (j * (cols + 1) + i).ravel()
-    top_right = top_left + 1
-    bottom_left = top_left + (cols + 1)
-    bottom_right = bottom_left + 1
-    indices = np.empty((2 * cols * rows, 3), dtype=np.int64)
-    indices[0::2] = np.stack([bottom_left, bottom_right, top_right], axis=-1)
-    indices[1::2] = np.stack([bottom_left, top_right, top_left], axis=-1)
+    top_left = (np.arange(rows)[:, None] * (cols + 1) + np.arange(cols)).ravel()     # cell (i, j), row-major
+    cells = np.empty((rows * cols, 2, 3), dtype=np.int64)     # per cell (bl, br, tr), (bl, tr, tl)
+    cells[:, 0, 0] = cells[:, 1, 0] = top_left + (cols + 1)
+    cells[:, 0, 1] = top_left + (cols + 2)
+    cells[:, 0, 2] = cells[:, 1, 1] = top_left + 1
+    cells[:, 1, 2] = top_left
+    indices = cells.reshape(-1, 3)
 
     colors = None
     if corner_colors is not None:
