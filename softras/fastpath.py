@@ -200,8 +200,8 @@ def plain_colors(base: np.ndarray) -> bool:
     The fragment colour is then (w0 + w1 + w2)^2 * k / 255 per colour
     channel and (w0 + w1 + w2) * k / 255 for alpha (`_shade_word`; corner
     colours of clipped triangles are sums of clip weights, 1 within a few
-    ulp).  At a covered pixel centre the perspective weights are in [0, 1]
-    and sum to 1 within a few ulp, so the value is k/255 within ~1e-15,
+    ulp).  At a covered pixel centre the perspective weights are within
+    rounding of [0, 1] and sum to 1 within a few ulp, so the value is k/255 within ~1e-15,
     and `ops.unorm8` gives back k (the product is within ~1e-13 of the
     integer k, nowhere near a rounding boundary; tests/test_fastpath.py
     checks every k).  The kernel uses it at one sample only, where the
@@ -659,8 +659,8 @@ def _frexp32(x):
 def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, ddy_s, ddy_t):
     """The level choice of `texture.sample` (gl precision, `texture.choose_levels`)
     for one quad's derivatives (float32 values): (level0, level1, frac, image
-    filter, whether to blend two levels).  Written with selects only, so that
-    a loop over quads vectorises; lod = +-inf or NaN picks levels as the
+    filter, whether to blend two levels).  Written with selects, no branches
+    to mispredict and no call to frexp; lod = +-inf or NaN picks levels as the
     float -> int64 conversion of numpy and llvmpipe does (the "integer
     indefinite", negative)."""
     w32 = np.float32(width0)
@@ -1105,8 +1105,8 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
     vectorised = tex_params[_T_VEC] != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
     _lane_weights(n, t, tri_f, lf, uv, True)               # weights and (s, t), vectorised
     _lane_depths(n, t, tri_f, positions, li, n_samples)          # (vectorised)
-    # The level of detail of every quad (a vectorised loop: `_quad_lod` has
-    # no branches), kept on the quad's first lane.
+    # The level of detail of every quad (one loop over the quads, before the
+    # depth test), kept on the quad's first lane.
     width0, height0, last = table[0, 1], table[0, 2], tex_params[_T_LEVELS] - 1
     mip, mag_filter, min_filter = tex_params[_T_MIP], tex_params[_T_MAG], tex_params[_T_MIN]
     for q in range(n >> 2):
