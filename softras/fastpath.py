@@ -135,18 +135,10 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     color = _scratch.take("color", shape + (4,), np.uint8) if reuse else np.empty(shape + (4,), np.uint8)
     offsets = np.ascontiguousarray(offsets, np.int64)
     positions = np.ascontiguousarray(positions, np.float64)
-    clear(color, depth, background_bytes(scene.background))
+    clear(color, depth, ops.unorm8_bytes(ops.premultiplied(scene.background)))
     for draw in ordered_draws(scene):
         draw_triangles(scene, draw, color, depth, offsets, positions, texture_fixed_point)
     return color
-
-
-def background_bytes(background) -> np.ndarray:
-    """The clear colour (4,) uint8 as `ops.new_framebuffer` with quantize has
-    it: round(clamp(premultiplied background) * 255)."""
-    bg = np.asarray(background, np.float64)
-    premultiplied = np.concatenate([bg[:3] * bg[3], bg[3:4]])
-    return np.rint(np.clip(premultiplied, 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
 def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture_fixed_point) -> None:
@@ -235,9 +227,7 @@ def _texture_tables(tex: texture.MipTexture, fixed_point: bool):
         h, w = level.shape[:2]
         table[k] = (at, w, h)
         at += h * w * 4
-    flat = levels_buffer(levels)                    # the mip chain's own buffer, no copy
-    if flat is None:
-        flat = np.concatenate([np.ascontiguousarray(level).reshape(-1) for level in levels])
+    flat = levels_buffer(levels)                    # the mip chain's own buffer: no copy
     mip = 0
     if tex.mipmapped:
         mip = 1 if tex.min_filter.endswith("mipmap_nearest") else 2
@@ -711,7 +701,8 @@ def clear(color, depth, clear_bytes):
 # Pixels are shaded in "lanes": `_tile` lists an untextured triangle's
 # covered pixels (shaded from LANES of them on, `_flat_block`) or a textured
 # triangle's covered 2x2 quads of one 8x8 block (4 lanes per quad, up to 64,
-# `_textured_block`); then each step runs as one loop over the lanes.  The steps without branches or table look-ups (the
+# `_textured_block`); then each step runs as one loop over the lanes.  The
+# steps without branches or table look-ups (the
 # perspective weights with their six divisions, depth, texel addresses, the
 # 8.8 filter, the colour bytes) are loops that LLVM compiles to AVX2 (4 or 8
 # lanes per instruction); the depth test, the quad's level of detail, the

@@ -29,13 +29,25 @@ DEPTH_BITS = 24
 def new_framebuffer(width: int, height: int, samples: int, background: np.ndarray,
                     quantize: bool) -> tuple[np.ndarray, np.ndarray]:
     """Cleared (color, depth) buffers; background is straight RGBA, stored premultiplied."""
-    clear = np.concatenate([background[:3] * background[3], background[3:4]])
+    clear = premultiplied(background)
     if quantize:
         clear = quantize_unorm8(clear)
     color = np.empty((height, width, samples, 4))
     color[...] = clear
     depth = np.ones((height, width, samples))
     return color, depth
+
+
+def premultiplied(rgba) -> np.ndarray:
+    """Straight RGBA (4,) -> premultiplied (r a, g a, b a, a) float64."""
+    rgba = np.asarray(rgba, np.float64)
+    return np.concatenate([rgba[:3] * rgba[3], rgba[3:4]])
+
+
+def unorm8_bytes(c: np.ndarray) -> np.ndarray:
+    """Float colour values -> the UNORM8 bytes, ``round_half_even(clamp(c, 0, 1) * 255)``
+    as uint8 (the byte k of `quantize_unorm8`'s k/255)."""
+    return np.rint(np.clip(c, 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
 def quantize_unorm8(c: np.ndarray) -> np.ndarray:
@@ -215,24 +227,21 @@ def _tent(d: np.ndarray) -> np.ndarray:
     return np.maximum(0.0, 1.0 - np.abs(d))
 
 
-def resolve_llvmpipe(color: np.ndarray) -> np.ndarray:
-    """llvmpipe's MSAA resolve of an RGBA8 buffer: (H, W, S, 4) k/255 values -> (H, W, 4) uint8, y-up.
+def resolve_llvmpipe_bytes(stored: np.ndarray) -> np.ndarray:
+    """llvmpipe's MSAA resolve of an RGBA8 buffer's bytes: (H, W, S, 4) uint8,
+    y-up -> (H, W, 4) uint8 with row 0 = the top of the picture.
 
     Mesa resolves with a blit shader in float32 (found by experiment against
     llvmpipe: see tests/stages/test_resolve.py): each stored byte v becomes
     ``v * (1/255)`` in float32, the S samples are summed in float32 in sample
     order, the sum is multiplied by ``1/S`` and stored to UNORM8 as
     ``round_half_even(m * 255)`` in float32.  Its rounding differs from the
-    exact mean's on some partly covered pixels by 1/255.
+    exact mean's on some partly covered pixels by 1/255; one sample comes
+    back as its own byte.  A compiled loop per pixel and channel, no float
+    arrays of the sample buffer's size.
     """
-    return resolve_llvmpipe_bytes(np.rint(np.clip(color, 0.0, 1.0) * 255.0).astype(np.uint8))[::-1]
-
-
-def resolve_llvmpipe_bytes(stored: np.ndarray) -> np.ndarray:
-    """`resolve_llvmpipe` of the stored bytes themselves: (H, W, S, 4) uint8
-    (y-up) -> (H, W, 4) uint8 with row 0 = the top of the picture.  A
-    compiled loop per pixel and channel, no float arrays of the sample
-    buffer's size (the fast path's MSAA buffers are bytes)."""
+    if stored.shape[2] == 1:
+        return stored[::-1, :, 0].copy()        # (a copy: the fast path's buffer is reused)
     stored = np.ascontiguousarray(stored, np.uint8)
     out = np.empty(stored.shape[:2] + (4,), np.uint8)
     _resolve_bytes(stored, out)
@@ -242,7 +251,7 @@ def resolve_llvmpipe_bytes(stored: np.ndarray) -> np.ndarray:
 @numba.njit(cache=True, parallel=True)
 def _resolve_bytes(stored, out):
     """out[H - 1 - y, x] = llvmpipe's float32 resolve of stored[y, x] (see
-    `resolve_llvmpipe`): v * (1/255) summed in sample order, times 1/S, times
+    `resolve_llvmpipe_bytes`): v * (1/255) summed in sample order, times 1/S, times
     255, clamped, rounded half to even; every step in float32."""
     height, width, n_samples = stored.shape[0], stored.shape[1], stored.shape[2]
     inv_255 = np.float32(1.0 / 255.0)
@@ -271,7 +280,7 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
         (dx, dy) pixels from the pixel's centre (a tent 2 pixels wide); at
         the image border the missing neighbours' weight is left out of the
         normalisation.
-    arithmetic : "exact" (float64) or "llvmpipe" (`resolve_llvmpipe`; box
+    arithmetic : "exact" (float64) or "llvmpipe" (`resolve_llvmpipe_bytes`; box
         filter, uint8 output only).
     output : "uint8" -- ``round(clamp(c, 0, 1) * 255)``; "float32" -- the
         filtered values, unclamped (an rgba32f framebuffer).
@@ -286,7 +295,7 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
     if output not in ("uint8", "float32"):
         raise ValueError(f"resolve: output must be 'uint8' or 'float32', not {output!r}")
     if arithmetic == "llvmpipe" and filter == "box" and output == "uint8":
-        return resolve_llvmpipe_bytes(np.rint(np.clip(color, 0.0, 1.0) * 255.0).astype(np.uint8))
+        return resolve_llvmpipe_bytes(unorm8_bytes(color))
     if filter == "box":
         mean = color.mean(axis=2, dtype=np.float64)
     else:
@@ -295,8 +304,7 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
         mean = _tent_filter(color, np.asarray(positions, np.float64))
     if output == "float32":
         return mean.astype(np.float32)[::-1].copy()
-    image = np.rint(np.clip(mean, 0.0, 1.0) * 255.0).astype(np.uint8)
-    return image[::-1].copy()
+    return unorm8_bytes(mean)[::-1].copy()
 
 
 def _tent_filter(color: np.ndarray, positions: np.ndarray) -> np.ndarray:

@@ -180,8 +180,6 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     if fast:
         stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point,
                                          reuse=True)        # copied below
-        if n_samples == 1 and resolve_filter == "box":
-            return stored[::-1, :, 0].copy()        # the resolve of one RGBA8 sample is its bytes
         if resolve_filter == "box":                 # GL's resolve, from the bytes
             return ops.resolve_llvmpipe_bytes(stored)
         color = stored / 255.0                      # the stages' k/255 sample values

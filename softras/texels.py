@@ -217,16 +217,17 @@ def mip_chain(level0: np.ndarray, premultiply: bool = False) -> tuple[np.ndarray
     return tuple(levels)
 
 
-def levels_buffer(levels) -> np.ndarray | None:
-    """The flat uint8 buffer that ``levels`` (level 0 first) lie back to back
-    in from its start, as :func:`mip_chain` lays them out, or None."""
+def levels_buffer(levels) -> np.ndarray:
+    """``levels`` (uint8, level 0 first) as one flat buffer, back to back: the
+    buffer :func:`mip_chain` laid them out in (no copy) when they lie in it
+    from its start, else a concatenated copy."""
     buffer = levels[0].base
-    if buffer is None or buffer.ndim != 1 or buffer.dtype != np.uint8:
-        return None
-    start = buffer.__array_interface__["data"][0]
-    at = start
-    for level in levels:
-        if not level.flags.c_contiguous or level.__array_interface__["data"][0] != at:
-            return None
-        at += level.nbytes
-    return buffer[:at - start]
+    if buffer is not None and buffer.ndim == 1 and buffer.dtype == np.uint8:
+        start = at = buffer.__array_interface__["data"][0]
+        for level in levels:
+            if not level.flags.c_contiguous or level.__array_interface__["data"][0] != at:
+                break
+            at += level.nbytes
+        else:
+            return buffer[:at - start]
+    return np.concatenate([np.ascontiguousarray(level, np.uint8).reshape(-1) for level in levels])

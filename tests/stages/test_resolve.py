@@ -49,9 +49,9 @@ def test_llvmpipe_arithmetic_keeps_single_sample_bytes():
 def test_compiled_byte_resolve_equals_the_float32_formula():
     """`resolve_llvmpipe_bytes` (one compiled loop, what the fast path's MSAA
     bytes take) = the documented float32 steps written as numpy, for every
-    byte in every sample slot and random 2, 4, 8-sample pixels; flipped."""
+    byte in every sample slot and random 1, 2, 4, 8-sample pixels; flipped."""
     rng = np.random.default_rng(7)
-    for n_samples in (2, 4, 8):
+    for n_samples in (1, 2, 4, 8):
         stored = rng.integers(0, 256, size=(37, 11, n_samples, 4), dtype=np.uint8)
         stored[:7] = (np.arange(7 * 11 * n_samples * 4) % 256).reshape(7, 11, n_samples, 4)   # every byte
         values = stored.astype(np.float32) * np.float32(1.0 / 255.0)

@@ -90,8 +90,11 @@ def test_mip_chain_levels_lie_back_to_back_in_one_buffer():
     np.testing.assert_array_equal(buffer, np.concatenate([level.ravel() for level in chain]))
     assert all(np.shares_memory(buffer, level) for level in chain)
     assert texels.levels_buffer(chain[:1]).nbytes == chain[0].nbytes
-    assert texels.levels_buffer(chain[1:]) is None                      # not from the buffer's start
-    assert texels.levels_buffer((chain[0].copy(), chain[1])) is None     # not one buffer
+    # Levels not laid out from one buffer's start: a concatenated copy.
+    for levels in (chain[1:], (chain[0].copy(), chain[1])):
+        copy = texels.levels_buffer(levels)
+        np.testing.assert_array_equal(copy, np.concatenate([level.ravel() for level in levels]))
+        assert not np.shares_memory(copy, buffer)
 
 
 def test_mip_memory_is_four_thirds():
