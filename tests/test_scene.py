@@ -555,3 +555,33 @@ def test_map_keys_are_stored_and_displacement_moves_the_mesh():
     np.testing.assert_allclose(draw.mesh.positions[:, 2], 0.25)
     np.testing.assert_array_equal(draw.mesh.normals, np.tile([0.0, 0.0, 1.0], (4, 1)))
     assert not draw.mesh.positions.flags.writeable
+
+
+def test_cross3_is_np_cross_bit_for_bit():
+    """scene.cross3 (look_at and the camera check) computes np.cross's doubles."""
+    from softras.scene import cross3
+    rng = np.random.default_rng(5)
+    for scale in (1e-300, 1e-8, 1.0, 1e8, 1e300):
+        for a, b in zip(rng.normal(size=(200, 3)) * scale, rng.normal(size=(200, 3))):
+            assert cross3(a, b).tobytes() == np.cross(a, b).tobytes()
+
+
+@pytest.mark.parametrize("eye, message", [
+    ([0, True, 3], r"^camera\.eye\[1\]: expected a number, got a boolean$"),
+    ([0, "1", 3], r"^camera\.eye\[1\]: expected a number, got the string '1'$"),
+    ([0, 1, 10 ** 400], r"^camera\.eye\[2\]: number too large$"),
+    ([0, float("inf"), 3], r"^camera\.eye\[1\]: expected a finite number, got inf$"),
+    ([0, None, 3], r"^camera\.eye\[1\]: expected a number, got null$"),
+])
+def test_vector_numbers_are_checked_one_by_one(eye, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(with_camera(eye=eye, target=[0, 0, -5]))
+
+
+def test_vector_numbers_keep_their_value():
+    """Ints beyond 2^53 and numpy numbers take the checked path; the value is float(x) either way."""
+    big = 2 ** 60 + 1
+    view = load_scene(with_camera(eye=[big, np.float32(0.5), 3], target=[0, 0, -5])).camera.view
+    np.testing.assert_array_equal(view[:3, 3], -(view[:3, :3] @ [float(big), 0.5, 3.0]))
+    with pytest.raises(SceneError, match=r"^background\[3\]: 1\.5 is out of range \[0, 1\]$"):
+        load_scene(minimal(background=[0, 0, 0, 1.5]))
