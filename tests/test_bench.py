@@ -65,6 +65,22 @@ def test_measure_reports_every_level_with_zero_error_for_the_truth_level():
     assert "from file" in bench.format_row(rows[0])
 
 
+def test_file_times_takes_at_least_the_minimum_of_interleaved_pairs(monkeypatch):
+    """From the file: a warm-up pair, then softras and glref alternately, each
+    from a fresh load; at least E2E_MIN_PAIRS pairs while the budget lasts,
+    only ``runs`` once it is spent."""
+    import softras
+    calls = []
+    monkeypatch.setattr(softras, "render", lambda scene, **options: calls.append(options.get("backend", "soft")))
+    scene = bench.grid_scene(2, 16)
+    bench._file_times(scene, {"precision": "gl"}, runs=3)
+    assert calls == ["soft", "gl"] * (1 + bench.E2E_MIN_PAIRS)
+    calls.clear()
+    monkeypatch.setattr(bench, "E2E_BUDGET", 0.0)
+    bench._file_times(scene, {"precision": "gl"}, runs=3)
+    assert calls == ["soft", "gl"] * (1 + 3)
+
+
 @pytest.mark.gl
 def test_unknown_option_makes_a_level_not_applicable_instead_of_failing():
     rows = bench.measure("tiny", bench.grid_scene(2, 16), runs=1, errors=False,
