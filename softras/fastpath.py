@@ -819,32 +819,45 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                     continue                            # the block is outside an edge
                 all_in = ((e_min0 - k0) | (e_min1 - k1) | (e_min2 - k2)) >= 0
                 if textured:
-                    # List the block's quads with any covered sample as lanes.
-                    n = 0
-                    for qy in range(by & -2, by1 + 1, 2):
-                        for qx in range(bx & -2, bx1 + 1, 2):
-                            quad_mask = 0
-                            for k in range(4):
-                                px = qx + (k & 1)
-                                py = qy + (k >> 1)
-                                mask = 0
-                                if bx <= px <= bx1 and by <= py <= by1:
-                                    mask = full_mask
-                                    if not all_in:
-                                        mask = 0
-                                        for s in range(n_samples):
-                                            if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
-                                                        a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1,
-                                                        a2, b2, ex2, ey2, k2):
-                                                mask |= 1 << s
-                                li[_LI_PX, n + k] = px
-                                li[_LI_PY, n + k] = py
-                                li[_LI_COV, n + k] = mask
-                                lf[_LF_CX, n + k] = px + 0.5
-                                lf[_LF_CY, n + k] = py + 0.5
-                                quad_mask |= mask
-                            if quad_mask:
-                                n += 4
+                    if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
+                        # A whole block inside the triangle: its 16 quads in
+                        # the order below, every sample covered, no tests.
+                        n = LANES
+                        for l in range(LANES):
+                            px = bx + ((l >> 2) & 3) * 2 + (l & 1)
+                            py = by + (l >> 4) * 2 + ((l >> 1) & 1)
+                            li[_LI_PX, l] = px
+                            li[_LI_PY, l] = py
+                            li[_LI_COV, l] = full_mask
+                            lf[_LF_CX, l] = px + 0.5
+                            lf[_LF_CY, l] = py + 0.5
+                    else:
+                        # List the block's quads with any covered sample as lanes.
+                        n = 0
+                        for qy in range(by & -2, by1 + 1, 2):
+                            for qx in range(bx & -2, bx1 + 1, 2):
+                                quad_mask = 0
+                                for k in range(4):
+                                    px = qx + (k & 1)
+                                    py = qy + (k >> 1)
+                                    mask = 0
+                                    if bx <= px <= bx1 and by <= py <= by1:
+                                        mask = full_mask
+                                        if not all_in:
+                                            mask = 0
+                                            for s in range(n_samples):
+                                                if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
+                                                            a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1,
+                                                            a2, b2, ex2, ey2, k2):
+                                                    mask |= 1 << s
+                                    li[_LI_PX, n + k] = px
+                                    li[_LI_PY, n + k] = py
+                                    li[_LI_COV, n + k] = mask
+                                    lf[_LF_CX, n + k] = px + 0.5
+                                    lf[_LF_CY, n + k] = py + 0.5
+                                    quad_mask |= mask
+                                if quad_mask:
+                                    n += 4
                     if n:
                         _textured_block(n, t, tri_f, colors, uv, positions, depth, color32,
                                         depth_func, write_z, blend, plain, tex, buffers, n_samples)
@@ -1100,6 +1113,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
     # depth test), kept on the quad's first lane.
     width0, height0, last = table[0, 1], table[0, 2], tex_params[_T_LEVELS] - 1
     mip, mag_filter, min_filter = tex_params[_T_MIP], tex_params[_T_MAG], tex_params[_T_MIN]
+    any_two = False                               # a quad samples two levels
     for q in range(n >> 2):
         l = 4 * q
         s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
@@ -1112,6 +1126,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
         li[_LI_IMGF, l] = image_filter
         li[_LI_TWO, l] = two
         lf[_LF_FRAC, l] = frac
+        any_two |= two
     # Depth test (scalar); a quad without a passed sample samples level 0 alone.
     block_passed = 0
     block_two = False                             # a passed quad samples two levels
@@ -1135,7 +1150,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
         block_two |= two
         # The quad's levels on its lanes: what each sampler reads.
         if vectorised:
-            for lv in range(2):
+            for lv in range(2 if any_two else 1):     # (the second level's rows only where read)
                 level = level1 if (lv == 1 and two) else level0
                 lw, lh, base = table[level, 1], table[level, 2], table[level, 0] >> 2
                 scale_s, scale_t = np.float32(lw * 256), np.float32(lh * 256)
