@@ -12,10 +12,10 @@ readback).  The issue's target is end to end *from the scene file*: for
 the gl level (`E2E_LEVEL`) each row also carries ``file_seconds`` and
 ``glref_file_seconds``, the medians of ``softras.render(load_scene(path))``
 and of ``softras.render(load_scene(path), backend="gl")`` on the scene written
-to a temporary JSON file, in interleaved pairs (at least `E2E_MIN_PAIRS` of
-them where they fit in `E2E_BUDGET` seconds) (parsing, procedural meshes and textures, mip chains
+to a temporary JSON file (parsing, procedural meshes and textures, mip chains
 and every upload included: the shared scene layer does the same work for
-both renderers), and ``file_ratio``.
+both renderers), and ``file_ratio``; these take interleaved pairs, at least
+`E2E_MIN_PAIRS` of them where they fit in `E2E_BUDGET` seconds.
 
 Error is measured against a ground truth rendered by softras itself:
 ``precision="exact"`` with 16 samples per pixel on a rotated grid

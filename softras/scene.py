@@ -374,7 +374,7 @@ def _vec(value, n: int | tuple[int, ...], place: str, lo: float = -math.inf, hi:
         raise SceneError(place, f"expected {want} numbers, got {len(items)}")
     numbers = []
     for i, x in enumerate(items):
-        if type(x) is float or type(x) is int and -_EXACT_INT <= x <= _EXACT_INT:   # (JSON's own types)
+        if type(x) is float or (type(x) is int and -_EXACT_INT <= x <= _EXACT_INT):   # (JSON's own types)
             number = float(x)
             if lo <= number <= hi and number - number == 0:                   # in range and finite
                 numbers.append(number)
