@@ -602,6 +602,12 @@ def _spread(texel):
 
 
 @numba.njit(cache=True, inline="always")
+def _unspread(x):
+    """The RGBA8 word (int64) of spread lanes x: `_spread` undone."""
+    return np.int64((x | (x >> np.uint64(24))) & np.uint64(0xFFFFFFFF))
+
+
+@numba.njit(cache=True, inline="always")
 def _lane(x, c):
     """Channel c (0 R, 1 G, 2 B, 3 A) of spread lanes, 0..255."""
     shift = 0 if c == 0 else (32 if c == 1 else (16 if c == 2 else 48))
@@ -614,6 +620,13 @@ def _lerp_lanes(w, a, b):
     once, for 0 <= w <= 256: the same integer as ``((256 - w) a + w b + 128) >> 8``,
     which stays below 2^16 in every lane (no carry between lanes)."""
     return ((np.uint64(256 - w) * a + np.uint64(w) * b + _HALF_LANES) >> np.uint64(8)) & _LANES
+
+
+@numba.njit(cache=True, inline="always")
+def _bilerp_lanes(fa, fb, t00, t10, t01, t11):
+    """llvmpipe's 8.8 bilinear filter on spread lanes: texels t00, t10 (row
+    0) and t01, t11 (row 1) with weights fa across and fb down (0..255)."""
+    return _lerp_lanes(fb, _lerp_lanes(fa, t00, t10), _lerp_lanes(fa, t01, t11))
 
 
 @numba.njit(cache=True, inline="always")
@@ -1063,7 +1076,7 @@ def _blend_word(blend, word, stored, alpha):
             total = src + dst
         carry = (total >> np.uint64(8)) & _ONE_LANES          # lanes over 255
         total = (total | (carry * np.uint64(255))) & _LANES
-        return np.int64((total | (total >> np.uint64(24))) & np.uint64(0xFFFFFFFF))     # un-`_spread`
+        return _unspread(total)
     blended = 0
     for c in range(4):
         blended |= blend_byte(blend, (word >> (8 * c)) & 255, (stored >> (8 * c)) & 255, alpha) << (8 * c)
@@ -1218,19 +1231,18 @@ def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, wrap_s, wrap
         for l in range(n):
             fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
             fa1, fb1 = li[_LI_FRAC8 + 2, l], li[_LI_FRAC8 + 3, l]
-            x = _lerp_lanes(fb0, _lerp_lanes(fa0, lu[0, l], lu[1, l]), _lerp_lanes(fa0, lu[2, l], lu[3, l]))
-            y = _lerp_lanes(fb1, _lerp_lanes(fa1, lu[4, l], lu[5, l]), _lerp_lanes(fa1, lu[6, l], lu[7, l]))
+            x = _bilerp_lanes(fa0, fb0, lu[0, l], lu[1, l], lu[2, l], lu[3, l])
+            y = _bilerp_lanes(fa1, fb1, lu[4, l], lu[5, l], lu[6, l], lu[7, l])
             lu[0, l] = _lerp_lanes(li[_LI_W8, l], x, y)
     else:
         for l in range(n):
             fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
-            lu[0, l] = _lerp_lanes(fb0, _lerp_lanes(fa0, lu[0, l], lu[1, l]), _lerp_lanes(fa0, lu[2, l], lu[3, l]))
+            lu[0, l] = _bilerp_lanes(fa0, fb0, lu[0, l], lu[1, l], lu[2, l], lu[3, l])
     # (Separate loops: one loop with a branch on ``words`` compiles to both
     # sides computed and masked stores.)
     if words:
         for l in range(n):
-            x = lu[0, l]
-            li[_LI_WORD, l] = np.int64((x | (x >> np.uint64(24))) & np.uint64(0xFFFFFFFF))   # un-`_spread`
+            li[_LI_WORD, l] = _unspread(lu[0, l])
     else:
         for l in range(n):
             for c in range(4):
@@ -1265,8 +1277,8 @@ def _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixe
             j0, j1, fb = _linear_fixed(t_px, lh, wrap_t)
             row0 = (base >> 2) + j0 * lw
             row1 = (base >> 2) + j1 * lw
-            x = _lerp_lanes(fb, _lerp_lanes(fa, _spread(texels32[row0 + i0]), _spread(texels32[row0 + i1])),
-                            _lerp_lanes(fa, _spread(texels32[row1 + i0]), _spread(texels32[row1 + i1])))
+            x = _bilerp_lanes(fa, fb, _spread(texels32[row0 + i0]), _spread(texels32[row0 + i1]),
+                              _spread(texels32[row1 + i0]), _spread(texels32[row1 + i1]))
         else:
             i0, i1, fa = _linear_float(s_px, lw, wrap_s)
             j0, j1, fb = _linear_float(t_px, lh, wrap_t)
