@@ -1,10 +1,10 @@
 """The one place that creates glref's headless OpenGL context.
 
-`get_context()` returns a moderngl standalone context (EGL, OpenGL >= 4.5 core),
+`get_context()` returns a moderngl standalone context (EGL, OpenGL >= 3.3 core),
 created once per process and cached; `info()` describes it. On a CPU machine
 the GL is Mesa llvmpipe, on a GPU machine the vendor driver.
 
-Everything that can be missing (the moderngl module, libEGL, a GL 4.5 driver)
+Everything that can be missing (the moderngl module, libEGL, a GL 3.3 driver)
 is reported as `GLUnavailable` with a one-line message.
 """
 
@@ -19,7 +19,7 @@ __all__ = ["GLUnavailable", "get_context", "info"]
 #: trade-offs and threading); recorded in `info()` as seen at context creation.
 PERF_ENV_VARS = ("GALLIVM_PERF", "LP_PERF", "LP_NUM_THREADS")
 
-_REQUIRE = 450  # OpenGL 4.5 core (DESIGN.md section 3)
+_REQUIRE = 330  # OpenGL 3.3 core: the oldest desktop GL glref draws with
 
 # Cache keyed by process id: a context inherited through fork() is not usable
 # in the child, so a forked worker creates its own.
@@ -30,7 +30,7 @@ _error: str | None = None
 
 
 class GLUnavailable(RuntimeError):
-    """No headless OpenGL 4.5 context can be created; str(e) is one line saying why."""
+    """No headless OpenGL 3.3 core context can be created; str(e) is one line saying why."""
 
 
 def _one_line(exc: BaseException) -> str:
@@ -41,7 +41,7 @@ def _one_line(exc: BaseException) -> str:
 def get_context():
     """The process's cached `moderngl.Context` (created on first use).
 
-    Raises `GLUnavailable` when moderngl is not importable or no OpenGL 4.5
+    Raises `GLUnavailable` when moderngl is not importable or no OpenGL 3.3
     context can be created through EGL. A failure is cached too, so repeated
     calls fail fast with the same message.
     """
@@ -61,7 +61,7 @@ def get_context():
     try:
         ctx = moderngl.create_standalone_context(backend="egl", require=_REQUIRE)
     except Exception as exc:  # moderngl raises its own Error / generic exceptions
-        _error = ("glref: no OpenGL 4.5 context via EGL (libEGL / Mesa llvmpipe not "
+        _error = ("glref: no OpenGL 3.3 core context via EGL (libEGL / Mesa not "
                   f"installed?): {_one_line(exc)}")
         raise GLUnavailable(_error) from None
     _ctx = ctx
@@ -91,6 +91,8 @@ def info() -> dict:
     return {k: (dict(v) if isinstance(v, dict) else v) for k, v in _info.items()}
 
 
+_GL_RENDERBUFFER = 0x8D41
+
 _DEPTH_FORMAT_NAMES = {
     0x1902: "GL_DEPTH_COMPONENT",
     0x81A5: "GL_DEPTH_COMPONENT16",
@@ -105,26 +107,30 @@ _DEPTH_FORMAT_NAMES = {
 def _probe_depth_format(ctx) -> str:
     """Ask GL which internal format a moderngl depth renderbuffer really has.
 
-    moderngl does not expose glGetRenderbufferParameteriv, so this calls the
-    GL 4.5 DSA entry point glGetNamedRenderbufferParameteriv through
-    eglGetProcAddress. Best effort: returns "unknown" if anything fails.
+    moderngl does not expose glGetRenderbufferParameteriv, so this binds the
+    renderbuffer and calls it through eglGetProcAddress (GL 3.0, no direct
+    state access). Best effort: returns "unknown" if anything fails.
     """
     rb = None
     try:
         egl = ctypes.CDLL("libEGL.so.1")
         egl.eglGetProcAddress.restype = ctypes.c_void_p
         egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-        addr = egl.eglGetProcAddress(b"glGetNamedRenderbufferParameteriv")
-        if not addr:
+        bind_addr = egl.eglGetProcAddress(b"glBindRenderbuffer")
+        get_addr = egl.eglGetProcAddress(b"glGetRenderbufferParameteriv")
+        if not bind_addr or not get_addr:
             return "unknown"
+        bind = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_uint)(bind_addr)
         get = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_uint,
-                               ctypes.POINTER(ctypes.c_int))(addr)
+                               ctypes.POINTER(ctypes.c_int))(get_addr)
         rb = ctx.depth_renderbuffer((1, 1))
+        bind(_GL_RENDERBUFFER, rb.glo)
         values = []
         for pname in (0x8D44, 0x8D54, 0x8D55):  # INTERNAL_FORMAT, DEPTH_SIZE, STENCIL_SIZE
             v = ctypes.c_int(0)
-            get(rb.glo, pname, ctypes.byref(v))
+            get(_GL_RENDERBUFFER, pname, ctypes.byref(v))
             values.append(v.value)
+        bind(_GL_RENDERBUFFER, 0)
         fmt, depth_bits, stencil_bits = values
         name = _DEPTH_FORMAT_NAMES.get(fmt, hex(fmt))
         return f"{name} ({depth_bits} depth bits, {stencil_bits} stencil bits)"

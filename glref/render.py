@@ -144,7 +144,8 @@ def _features(draw, n_lights: int) -> tuple[str, ...]:
     return tuple(sorted(defines))
 
 
-# GL enums for the sampler state (glTextureParameteri).
+# GL enums for the sampler state (glTexParameteri on the bound texture).
+_GL_TEXTURE_2D = 0x0DE1
 _GL_TEXTURE_MAG_FILTER = 0x2800
 _GL_TEXTURE_MIN_FILTER = 0x2801
 _GL_TEXTURE_WRAP_S = 0x2802
@@ -176,7 +177,7 @@ def _gl_function(name: str, *argtypes):
     return fn
 
 
-def _upload_texture(ctx, texture):
+def _upload_texture(ctx, texture, unit: int):
     """A GL texture holding exactly softras's texels and sampler state.
 
     Every level comes from `Texture.levels` of the scene model (premultiplied
@@ -189,20 +190,31 @@ def _upload_texture(ctx, texture):
     levels = texture.levels if texture.mipmapped else texture.levels[:1]
     height, width = levels[0].shape[:2]
     tex = ctx.texture((width, height), 4, np.ascontiguousarray(levels[0]).tobytes(), alignment=1)
-    parami = _gl_function("glTextureParameteri", ctypes.c_uint, ctypes.c_uint, ctypes.c_int)
-    paramf = _gl_function("glTextureParameterf", ctypes.c_uint, ctypes.c_uint, ctypes.c_float)
     if len(levels) > 1:
         tex.build_mipmaps(0, len(levels) - 1)     # allocates the levels; overwritten next
         for i, level in enumerate(levels[1:], start=1):
             tex.write(np.ascontiguousarray(level).tobytes(), level=i, alignment=1)
-    parami(tex.glo, _GL_TEXTURE_BASE_LEVEL, 0)
-    parami(tex.glo, _GL_TEXTURE_MAX_LEVEL, len(levels) - 1)
-    parami(tex.glo, _GL_TEXTURE_MIN_FILTER, _GL_FILTER[texture.min_filter])
-    parami(tex.glo, _GL_TEXTURE_MAG_FILTER, _GL_FILTER[texture.mag_filter])
-    parami(tex.glo, _GL_TEXTURE_WRAP_S, _GL_WRAP[texture.wrap_s])
-    parami(tex.glo, _GL_TEXTURE_WRAP_T, _GL_WRAP[texture.wrap_t])
-    paramf(tex.glo, _GL_TEXTURE_MAX_ANISOTROPY, float(texture.max_anisotropy))
+    # GL 3.3 has no direct state access: bind the texture (to the unit it is
+    # sampled from), set its parameters.
+    tex.use(unit)
+    parami = _gl_function("glTexParameteri", ctypes.c_uint, ctypes.c_uint, ctypes.c_int)
+    paramf = _gl_function("glTexParameterf", ctypes.c_uint, ctypes.c_uint, ctypes.c_float)
+    parami(_GL_TEXTURE_2D, _GL_TEXTURE_BASE_LEVEL, 0)
+    parami(_GL_TEXTURE_2D, _GL_TEXTURE_MAX_LEVEL, len(levels) - 1)
+    parami(_GL_TEXTURE_2D, _GL_TEXTURE_MIN_FILTER, _GL_FILTER[texture.min_filter])
+    parami(_GL_TEXTURE_2D, _GL_TEXTURE_MAG_FILTER, _GL_FILTER[texture.mag_filter])
+    parami(_GL_TEXTURE_2D, _GL_TEXTURE_WRAP_S, _GL_WRAP[texture.wrap_s])
+    parami(_GL_TEXTURE_2D, _GL_TEXTURE_WRAP_T, _GL_WRAP[texture.wrap_t])
+    if has_anisotropy(ctx):
+        paramf(_GL_TEXTURE_2D, _GL_TEXTURE_MAX_ANISOTROPY, float(texture.max_anisotropy))
     return tex
+
+
+def has_anisotropy(ctx) -> bool:
+    """Whether the context offers anisotropic filtering (core in GL 4.6, else
+    GL_ARB_texture_filter_anisotropic or GL_EXT_texture_filter_anisotropic)."""
+    return ctx.version_code >= 460 or bool(
+        {"GL_ARB_texture_filter_anisotropic", "GL_EXT_texture_filter_anisotropic"} & set(ctx.extensions))
 
 
 def _drain_errors(ctx) -> None:
@@ -305,8 +317,7 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None)
                 content.append((own(ctx.buffer(np.ascontiguousarray(mesh.uvs, np.float32))),
                                 "2f", "in_uv"))
             if "HAS_TEXTURE" in defines:
-                tex = own(_upload_texture(ctx, scene.textures[draw.material.texture]))
-                tex.use(0)
+                own(_upload_texture(ctx, scene.textures[draw.material.texture], 0))
                 prog["u_texture"].value = 0
             if mapped:
                 content.append(_set_normal_mapping(ctx, prog, scene, draw, own))
@@ -372,8 +383,7 @@ def _set_normal_mapping(ctx, prog, scene, draw, own):
     the same values softras interpolates).  Returns the (buffer, format, name) VAO entry."""
     mesh, mat = draw.mesh, draw.material
     name = mat.normal_map if mat.normal_map is not None else mat.bump_map
-    tex = own(_upload_texture(ctx, scene.textures[name]))
-    tex.use(1)
+    tex = own(_upload_texture(ctx, scene.textures[name], 1))
     if mat.normal_map is not None:
         prog["u_normal_map"].value = 1
     else:

@@ -1,4 +1,4 @@
-#version 450 core
+#version 330 core
 // glref fragment stage for lit materials: the lit colour (per face, vertex or
 // fragment, see lit.vert) premultiplied, times the premultiplied texel.
 // NORMAL_MAP / BUMP_MAP (Phong only): the normal is perturbed per fragment

@@ -1,4 +1,4 @@
-#version 450 core
+#version 330 core
 // glref geometry stage for flat shading: one Blinn-Phong colour per triangle,
 // lit with the face normal normalize(cross(p1 - p0, p2 - p0)) (world space,
 // counter-clockwise = front) at the face centroid (p0 + p1 + p2) / 3, with

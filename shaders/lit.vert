@@ -1,4 +1,4 @@
-#version 450 core
+#version 330 core
 // glref vertex stage for lit materials (Blinn-Phong, see lighting.glsl).
 // Specialised by #define (inserted by glref after the #version line):
 //   HAS_COLOR        per-vertex RGBA colours (else white)

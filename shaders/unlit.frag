@@ -1,4 +1,4 @@
-#version 450 core
+#version 330 core
 // glref fragment stage: colour = vertex colour x material colour, written
 // PREMULTIPLIED (rgb * a, a) as DESIGN.md section 3 requires, times the texel
 // (the texture holds premultiplied texels).

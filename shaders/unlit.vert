@@ -1,4 +1,4 @@
-#version 450 core
+#version 330 core
 // glref vertex stage: model space -> clip space, pass the vertex attributes on.
 // Specialised by #define (inserted by glref after the #version line):
 //   HAS_COLOR   the mesh has per-vertex RGBA colours (else white)
