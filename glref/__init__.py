@@ -4,11 +4,13 @@ The only code in the project that imports moderngl. It may import
 `softras.scene` and nothing else from softras (DESIGN.md section 1).
 
     render(scene, *, samples=None) -> np.ndarray   uint8 (H, W, 4), row 0 = top
-    info() -> dict                                  GL_RENDERER, GL_VERSION, ...
+    info() -> dict                                  GL_RENDERER, GL_VERSION, capabilities ...
+    unsupported(scene, *, samples=None) -> str|None why this context cannot draw it
     GLUnavailable                                   no GL context (one-line reason)
+    NotSupported                                    the context lacks what a scene needs
 """
 
-from .context import GLUnavailable, info
-from .render import render
+from .context import DEVICE_ENV, GLUnavailable, info
+from .render import NotSupported, render, unsupported
 
-__all__ = ["render", "info", "GLUnavailable"]
+__all__ = ["render", "unsupported", "info", "GLUnavailable", "NotSupported", "DEVICE_ENV"]

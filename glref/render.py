@@ -31,9 +31,14 @@ from importlib import resources
 
 import numpy as np
 
-from .context import get_context
+from .context import get_context, info
 
-__all__ = ["render"]
+__all__ = ["render", "unsupported", "NotSupported"]
+
+
+class NotSupported(ValueError):
+    """The scene needs something this GL context does not offer (dEQP's
+    NotSupported); str(e) is one line naming what."""
 
 # DESIGN.md section 5 depth_test names -> moderngl depth_func strings.
 _DEPTH_FUNCS = {
@@ -224,6 +229,34 @@ def _drain_errors(ctx) -> None:
             return
 
 
+def unsupported(scene, *, samples: int | None = None, capabilities: dict | None = None) -> str | None:
+    """Why this GL context cannot draw `scene` as asked, or None when it can.
+
+    Checked against the context's capability record (`glref.info()`, or
+    `capabilities` when given): the sample count must be one GL gives exactly
+    (a request it rounds up to more samples would be a different picture),
+    the picture within GL_MAX_RENDERBUFFER_SIZE / GL_MAX_VIEWPORT_DIMS, every
+    texture within GL_MAX_TEXTURE_SIZE, and anisotropic filtering present
+    where a texture asks for max_anisotropy > 1.
+    """
+    caps = info() if capabilities is None else capabilities
+    n = int(scene.samples if samples is None else samples)
+    if n not in caps["sample_counts"]:
+        offered = ", ".join(str(c) for c in caps["sample_counts"])
+        return f"{n} samples per pixel (this GL renders {offered})"
+    limit = min(caps["max_renderbuffer_size"], *caps["max_viewport_dims"])
+    if max(scene.width, scene.height) > limit:
+        return f"a {scene.width}x{scene.height} picture (largest framebuffer {limit})"
+    for name, texture in getattr(scene, "textures", {}).items():
+        height, width = texture.levels[0].shape[:2]
+        if max(width, height) > caps["max_texture_size"]:
+            return (f"texture {name!r} of {width}x{height} texels "
+                    f"(GL_MAX_TEXTURE_SIZE {caps['max_texture_size']})")
+        if texture.max_anisotropy > 1 and caps["max_anisotropy"] < 1:
+            return f"texture {name!r}: anisotropic filtering (no GL_ARB_texture_filter_anisotropic)"
+    return None
+
+
 def render(scene, *, samples: int | None = None, framebuffer: str | None = None) -> np.ndarray:
     """Render `scene` with OpenGL and return the picture.
 
@@ -240,8 +273,9 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None)
 
     Returns (H, W, 4) RGBA, premultiplied, row 0 = top of the picture (GL's
     last row), column 0 = left: uint8 for rgba8, float32 for rgba32f.
-    Raises `GLUnavailable` when there is no GL, `NotImplementedError` for
-    scene features glref does not draw yet, RuntimeError on a GL error.
+    Raises `GLUnavailable` when there is no GL, `NotSupported` when the
+    context lacks what the scene needs (`unsupported`), `NotImplementedError`
+    for scene features glref does not draw yet, RuntimeError on a GL error.
     """
     from softras.scene import FRAMEBUFFERS, load_scene, ordered_draws  # the softras module glref may import
     if not hasattr(scene, "draws"):
@@ -256,8 +290,9 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None)
 
     width, height = int(scene.width), int(scene.height)
     n_samples = int(scene.samples if samples is None else samples)
-    if n_samples < 1 or n_samples > ctx.max_samples:
-        raise ValueError(f"glref: samples={n_samples} not in 1..{ctx.max_samples}")
+    reason = unsupported(scene, samples=n_samples)
+    if reason is not None:
+        raise NotSupported(f"glref: this OpenGL cannot draw {reason}")
     msaa = 0 if n_samples == 1 else n_samples
     size = (width, height)
 

@@ -11,10 +11,16 @@
     softras demo [--scene SCENE.json] [--out-dir DIR] [--json] [--precision gl|exact]
     softras golden [--update] [--golden-dir DIR] [--out-dir DIR] [PATH ...]
     softras conformance [PATH ...] [--report DIR] [-k PATTERN] [--shard I/N] [-j N]
+                        [--profile auto|strict|spec]
+    softras verify SCENE IMAGE REFERENCE [--profile spec|strict|auto] [--capabilities F]
+                   [--json] [--out-dir DIR]
+    softras info [--json]
     softras bench [--quick | --full] [--runs N] [--max-triangles N] [--max-side N]
                   [--json OUT.json] [--plot OUT.png]
 
-Exit status (DESIGN.md section 6): 0 success or comparison passed, 1 comparison
+``--gl-device N`` (before the command) picks the N-th EGL device for glref.
+
+Exit status: 0 success or comparison passed, 1 comparison
 failed, 2 bad input or environment error. On status 2 exactly one line,
 ``softras: error: <reason>``, goes to stderr, and no output file is created or
 changed: inputs are read and output folders checked before anything is
@@ -102,6 +108,7 @@ def _render(scene, backend: str, precision: str | None, samples: int | None, **e
         options["precision"] = precision
 
     gl_unavailable: tuple[type[BaseException], ...] = ()
+    not_supported: tuple[type[BaseException], ...] = ()
     if backend == "gl":
         try:
             import glref
@@ -110,6 +117,7 @@ def _render(scene, backend: str, precision: str | None, samples: int | None, **e
                 raise
             raise CLIError(f"OpenGL reference renderer unavailable: {_one_line(error)}") from None
         gl_unavailable = (glref.GLUnavailable,)
+        not_supported = (glref.NotSupported,)
 
     start = time.perf_counter()
     try:
@@ -118,6 +126,8 @@ def _render(scene, backend: str, precision: str | None, samples: int | None, **e
         raise CLIError(_one_line(error)) from None
     except gl_unavailable as error:
         raise CLIError(f"OpenGL unavailable: {_one_line(error)}") from None
+    except not_supported as error:
+        raise CLIError(f"not supported: {_one_line(error)}") from None
     return image, time.perf_counter() - start
 
 
@@ -259,7 +269,9 @@ def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | Non
     gl, gl_seconds = _render(scene, "gl", None, args.samples)
     soft, soft_seconds = _render(scene, "soft", args.precision, args.samples)
     gl_name = _gl_description()
-    result = _compare(soft, gl, _tolerance(args, scene.tolerance))
+    from softras.verifier import scene_tolerance
+
+    result = _compare(soft, gl, _tolerance(args, scene_tolerance(scene_path, scene)[0]))
 
     outputs: list[Path] = _write_maps(result, targets)
     if folder is not None:
@@ -531,7 +543,8 @@ def cmd_explain(args: argparse.Namespace) -> int:
 def cmd_conformance(args: argparse.Namespace) -> int:
     """``softras conformance [PATH ...]``: every scene through both renderers, a verdict each.
 
-    Exit 0 when every scene passes or has a quality warning, 1 when any fails,
+    Exit 0 when every scene passes, has a quality warning or is not
+    supported by the GL, 1 when any fails,
     2 for bad input (a missing path, a bad scene, no scene matching -k, a bad
     --shard or -j, an unwritable --report folder) or no OpenGL -- found before
     anything is rendered or written.
@@ -575,11 +588,15 @@ def cmd_conformance(args: argparse.Namespace) -> int:
 
     jobs = min(args.jobs, max(len(paths), 1))
     shard_text = f", shard {args.shard}" if args.shard else ""
+    capabilities = glref.info()
+    from softras.verifier import choose_profile
+
+    profile_text = args.profile if args.profile != "auto" else f"auto: {choose_profile('auto', capabilities)}"
     print(f"conformance: {len(paths)} scene{'s' if len(paths) != 1 else ''}{shard_text}, "
-          f"{jobs} process{'es' if jobs != 1 else ''}, GL: {gl_name}", flush=True)
+          f"{jobs} process{'es' if jobs != 1 else ''}, profile {profile_text}, GL: {gl_name}", flush=True)
     bar = conformance.ProgressBar(len(paths))
     try:
-        results = conformance.run(paths, jobs=jobs, on_result=bar.advance)
+        results = conformance.run(paths, jobs=jobs, on_result=bar.advance, profile=args.profile)
     finally:
         bar.close()
     seconds = time.perf_counter() - start
@@ -593,14 +610,122 @@ def cmd_conformance(args: argparse.Namespace) -> int:
     if report is not None:
         from softras.report import write_report
 
-        meta = {"seconds": round(seconds, 3), "jobs": jobs, "gl_renderer": gl_name, "shard": args.shard,
+        meta = {"seconds": round(seconds, 3), "jobs": jobs, "gl_renderer": gl_name, "profile": profile_text,
+                "gl": capabilities, "shard": args.shard,
                 "patterns": args.patterns or [], "paths": [str(path) for path in paths],
                 "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
         index = write_report(report, results, meta)
         print(f"report: {index}")
-    print(f"conformance: {tally['total']} scene{'s' if tally['total'] != 1 else ''}: {tally['pass']} pass, {tally['warn']} quality warning, "
-          f"{tally['fail']} fail in {seconds:.1f} s (-j {jobs})")
+    print(f"conformance: {tally['total']} scene{'s' if tally['total'] != 1 else ''}: {tally['pass']} pass, "
+          f"{tally['quality_warning']} quality warning, {tally['fail']} fail, {tally['not_supported']} not supported "
+          f"in {seconds:.1f} s (-j {jobs}, profile {profile_text})")
     return EXIT_FAILED if tally["fail"] else EXIT_OK
+
+
+def _import_glref():
+    """glref, with a missing moderngl turned into CLIError."""
+    try:
+        import glref
+    except ModuleNotFoundError as error:
+        if error.name not in ("moderngl", "glcontext"):
+            raise
+        raise CLIError(f"OpenGL reference renderer unavailable: {_one_line(error)}") from None
+    return glref
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """``softras info``: the GL glref renders with and its capability record (exit 2 without GL)."""
+    glref = _import_glref()
+    try:
+        info = glref.info()
+    except glref.GLUnavailable as error:
+        raise CLIError(f"OpenGL unavailable: {_one_line(error)}") from None
+    from softras.verifier import choose_profile
+
+    info = info | {"profile_auto": choose_profile("auto", info)}
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return EXIT_OK
+    for key, value in info.items():
+        if key == "sample_positions":
+            for count, places in value.items():
+                print(f"{'sample positions ' + count:<28} "
+                      + " ".join(f"({x:g}, {y:g})" for x, y in places))
+        elif isinstance(value, dict):
+            print(f"{key:<28} " + ", ".join(f"{k}={v}" for k, v in value.items()))
+        else:
+            print(f"{key:<28} {value}")
+    return EXIT_OK
+
+
+def _read_picture(path: str, name: str):
+    """A PNG or .npy picture for verify, bad input as CLIError."""
+    from softras.imageio import read_png
+
+    if path.endswith(".npy"):
+        try:
+            import numpy as np
+
+            return np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as error:
+            raise CLIError(f"{path}: cannot read the {name}: {_one_line(error)}") from None
+    return read_png(path)
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    """``softras verify SCENE IMAGE REFERENCE``: judge a picture against GL's (exit 0 pass/warning, 1 fail)."""
+    from softras import verifier
+    from softras.imageio import write_png_atomic
+
+    scene = _load_scene(args.scene)
+    image = _read_picture(args.image, "image")
+    reference = _read_picture(args.reference, "reference")
+    folder = _check_output_dir(args.out_dir) if args.out_dir is not None else None
+    capabilities = None
+    if args.capabilities is not None:
+        try:
+            data = json.loads(Path(args.capabilities).read_text(encoding="utf-8"))
+        except (OSError, ValueError) as error:
+            raise CLIError(f"{args.capabilities}: not a capability record: {_one_line(error)}") from None
+        capabilities = data.get("gl", data) if isinstance(data, dict) else None
+        if not isinstance(capabilities, dict) or "GL_RENDERER" not in capabilities:
+            raise CLIError(f"{args.capabilities}: not a capability record (softras info --json, "
+                           "or a conformance results.json)")
+    elif args.profile != "strict":
+        glref = _import_glref()
+        try:
+            capabilities = glref.info()
+        except glref.GLUnavailable:
+            capabilities = None     # the spec's minimum sub-pixel precision
+    try:
+        result = verifier.verify(scene, image, reference, profile=args.profile, capabilities=capabilities)
+    except ValueError as error:
+        raise CLIError(_one_line(error)) from None
+    outputs = []
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, picture in result.images.items():
+            write_png_atomic(folder / f"{name}.png", picture)
+            outputs.append(str(folder / f"{name}.png"))
+    if args.json:
+        print(json.dumps(result.to_dict() | {"outputs": outputs}, indent=2))
+    else:
+        print(f"{verifier.VERDICT_NAMES[result.verdict]} ({result.profile} profile): {args.scene}")
+        for reason in result.reasons:
+            print(f"  {reason}")
+        for path in outputs:
+            print(f"  wrote {path}")
+    return EXIT_OK if result.passed else EXIT_FAILED
+
+
+def _device(text: str) -> str:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"not a device index (0, 1, ...): {text!r}")
+    return str(value)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -616,6 +741,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="A reference software rasterizer, cross-checked image by image against OpenGL.",
         epilog="Exit status: 0 success or pass, 1 comparison failed, 2 bad input or environment error.",
     )
+    parser.add_argument("--gl-device", type=_device, default=None, metavar="N",
+                        help="glref renders on the N-th EGL device (machines with several GPUs); "
+                             "Mesa's driver is chosen with GALLIUM_DRIVER (llvmpipe, softpipe, zink)")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     render = commands.add_parser("render", help="render a scene to a PNG file",
@@ -696,6 +824,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     conformance.add_argument("paths", nargs="*", metavar="PATH",
                              help="scene files or folders of them (default: all of scenes/)")
+    conformance.add_argument("--profile", choices=("auto", "strict", "spec"), default="auto",
+                             help="strict: the scene's tolerance, bit-exact where softras reproduces the "
+                                  "GL (llvmpipe 22.3); spec: per-pixel bounds of what any conformant GL "
+                                  "may draw; auto (default): strict on the GL softras reproduces, else spec")
     conformance.add_argument("--report", default=None, metavar="DIR",
                              help="write index.html, results.json, junit.xml and per-scene pictures into DIR")
     conformance.add_argument("-k", dest="patterns", action="append", default=None, metavar="PATTERN",
@@ -746,6 +878,35 @@ def build_parser() -> argparse.ArgumentParser:
                          help="samples per pixel (default: the scene's)")
     explain.add_argument("--json", action="store_true", help="print the history as JSON")
     explain.set_defaults(func=cmd_explain)
+
+    verify = commands.add_parser(
+        "verify", help="judge a picture of a scene against GL's: could a conformant GL draw it?",
+        description="Judge IMAGE (softras's or any renderer's picture of SCENE) against REFERENCE (GL's), "
+                    "both PNG (RGBA, row 0 = top) or .npy (uint8 or float32, (H, W, 4)). spec (default): "
+                    "both must lie within the per-pixel bounds of what the GL specification lets a "
+                    "conformant implementation draw; strict: the scene's tolerance. Exit 0 on PASS or "
+                    "QUALITY WARNING, 1 on FAIL, 2 on bad input.",
+    )
+    verify.add_argument("scene", metavar="SCENE", help="scene file")
+    verify.add_argument("image", metavar="IMAGE", help="the picture under test (PNG or .npy)")
+    verify.add_argument("reference", metavar="REFERENCE", help="GL's picture (PNG or .npy)")
+    verify.add_argument("--profile", choices=("spec", "strict", "auto"), default="spec",
+                        help="verification profile (default spec)")
+    verify.add_argument("--capabilities", default=None, metavar="FILE.json",
+                        help="the reference GL's capability record (softras info --json, or a "
+                             "conformance results.json); default: this machine's GL, else the spec's minimums")
+    _add_output_options(verify, out_dir_default=None,
+                        out_dir_help="write the bound images (bound_lo, bound_hi), diff and where into DIR")
+    verify.set_defaults(func=cmd_verify)
+
+    info = commands.add_parser(
+        "info", help="the OpenGL glref renders with, and its capability record",
+        description="Print the GL implementation glref uses (renderer, version, driver environment) and "
+                    "its capability record: GL_SUBPIXEL_BITS, sample counts and positions, anisotropy, "
+                    "size limits, and the profile 'auto' picks. Exit 2 without OpenGL.",
+    )
+    info.add_argument("--json", action="store_true", help="print the record as JSON")
+    info.set_defaults(func=cmd_info)
     return parser
 
 
@@ -771,6 +932,8 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "func", None) is None:
         parser.print_help(sys.stderr)
         return EXIT_ERROR
+    if args.gl_device is not None:
+        os.environ["SOFTRAS_GL_DEVICE"] = args.gl_device   # glref.DEVICE_ENV; workers inherit it
 
     from softras.imageio import ImageError
 

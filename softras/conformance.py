@@ -1,26 +1,24 @@
 """The conformance run: every scene through both renderers, one verdict each.
 
-``softras conformance`` (DESIGN.md section 6) renders each scene with softras
-(precision "gl") and with glref, and gives it one of dEQP's verdicts:
+``softras conformance`` renders each scene with softras (precision "gl") and
+with glref, and gives it one of dEQP's verdicts through
+:mod:`softras.verifier` under a profile (``--profile``):
 
-* **pass** -- softras matches GL within the scene's tolerance (per-pixel
-  threshold, fraction of bad pixels, mean SSIM; :func:`softras.compare`) over
-  the whole image. This is the same check as ``tests/test_scenes.py`` and the
-  golden images: where softras claims to reproduce llvmpipe bit for bit, the
-  claim is enforced on every pixel.
-* **quality warning** -- the strict check fails, but passes once the pixels of
-  the ambiguity mask (:mod:`softras.ambiguity`: pixels whose answer depends on
-  implementation choices GL allows) are excused: every difference beyond the
-  tolerance is one that another correct implementation could also produce.
-  dEQP's rasterization tests do the same: a strict pass, else a weaker check
-  that, if it passes, gives ``QualityWarning``.
-* **fail** -- the tolerance fails even with the ambiguous pixels excused (or
-  softras cannot render the scene). The reasons say which stage disagrees
-  (coverage, depth or colour, from primitive-ID pictures of both renderers,
-  :func:`softras.ambiguity.classify_differences`) and where.
+* ``strict`` -- the scene's tolerance on every pixel, quality warning when
+  it holds only with the ambiguity mask excused (:func:`softras.verifier.judge_strict`);
+  softras's contract with the implementation it reproduces (llvmpipe 22.3);
+* ``spec`` -- both pictures within the per-pixel bounds of what any
+  conformant GL may draw (:func:`softras.verifier.judge_spec`);
+* ``auto`` (default) -- strict for the implementation softras reproduces,
+  spec for any other (:func:`softras.verifier.choose_profile`).
+
+A fourth verdict, **not supported** (dEQP's NotSupported), is given to a scene
+that needs what the GL context lacks (a sample count, anisotropic filtering,
+a texture size: :func:`glref.unsupported`); it is never a failure.
 
 Tolerance: the scene's own ``"tolerance"`` when its file declares one,
-otherwise the defaults for the features it uses (:data:`FEATURE_TOLERANCES`).
+otherwise the defaults for the features it uses
+(:data:`softras.verifier.FEATURE_TOLERANCES`, the one set of defaults).
 
 Scenes run in this process (``jobs=1``) or in worker processes started with
 ``spawn`` (a fresh interpreter each: every worker creates its own EGL context;
@@ -30,7 +28,7 @@ a context cannot survive ``fork``). Results come back in scene order.
 from __future__ import annotations
 
 import fnmatch
-import json
+import functools
 import multiprocessing
 import os
 import sys
@@ -44,36 +42,18 @@ from typing import Callable, Iterable
 import numpy as np
 
 from softras.scene import scene_files
+from softras.verifier import (FAIL, FEATURE_TOLERANCES, NOT_SUPPORTED, PASS, PROFILES, VERDICT_NAMES, WARN,
+                              feature_tolerance, judge_strict, scene_tolerance)
 
 __all__ = [
-    "PASS", "WARN", "FAIL", "VERDICT_NAMES", "FEATURE_TOLERANCES", "ConformanceError", "SceneResult",
+    "PASS", "WARN", "FAIL", "NOT_SUPPORTED", "VERDICT_NAMES", "FEATURE_TOLERANCES", "PROFILES",
+    "ConformanceError", "SceneResult",
     "feature_tolerance", "scene_tolerance", "select", "parse_shard", "shard", "check_scene", "judge",
     "run", "counts", "ProgressBar",
 ]
 
-PASS, WARN, FAIL = "pass", "warn", "fail"
-#: How each verdict is written for people.
-VERDICT_NAMES = {PASS: "PASS", WARN: "QUALITY WARNING", FAIL: "FAIL"}
-#: Failing scenes first, then warnings, then passes.
-VERDICT_ORDER = {FAIL: 0, WARN: 1, PASS: 2}
-
-#: Default tolerance by feature, for scenes that declare none; a scene with
-#: several features gets the loosest threshold and bad fraction and the
-#: lowest SSIM among them. The values are those the existing scenes of each
-#: kind declare, for the reasons in their descriptions and in tests/test_scenes.py.
-FEATURE_TOLERANCES = {
-    # The scene format's default: 2/255 covers one rounding step of each of
-    # interpolation and blending.
-    "base": {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99},
-    # llvmpipe filters RGBA8 textures with 8-bit weights and a piecewise
-    # linear log2 for the LOD (reproduced in gl precision; other drivers
-    # differ by a few levels at texel and mip boundaries).
-    "texture": {"threshold": 3, "max_bad_fraction": 0.005, "min_ssim": 0.98},
-    # Lighting: float32 normalize / pow in the shader, vendor-specific.
-    "lighting": {"threshold": 3, "max_bad_fraction": 0.005, "min_ssim": 0.98},
-    # 4x MSAA: the resolve averages four rounded samples.
-    "msaa": {"threshold": 2, "max_bad_fraction": 0.002, "min_ssim": 0.99},
-}
+#: Failing scenes first, then warnings, then not supported, then passes.
+VERDICT_ORDER = {FAIL: 0, WARN: 1, NOT_SUPPORTED: 2, PASS: 3}
 
 
 class ConformanceError(ValueError):
@@ -86,47 +66,6 @@ def _one_line(text: object) -> str:
 
 # ---------------------------------------------------------------------------
 # Choosing scenes and tolerances
-
-
-def feature_tolerance(scene) -> tuple[dict, list[str]]:
-    """The default tolerance for the features a scene uses.
-
-    Returns
-    -------
-    tolerance : dict
-        ``threshold``, ``max_bad_fraction``, ``min_ssim``.
-    features : list of str
-        The keys of :data:`FEATURE_TOLERANCES` that applied (``"base"`` first).
-    """
-    features = ["base"]
-    if any(draw.material.texture is not None for draw in scene.draws):
-        features.append("texture")
-    if any(draw.material.shading != "unlit" for draw in scene.draws):
-        features.append("lighting")
-    if scene.samples > 1:
-        features.append("msaa")
-    chosen = [FEATURE_TOLERANCES[name] for name in features]
-    tolerance = {"threshold": max(t["threshold"] for t in chosen),
-                 "max_bad_fraction": max(t["max_bad_fraction"] for t in chosen),
-                 "min_ssim": min(t["min_ssim"] for t in chosen)}
-    return tolerance, features
-
-
-def scene_tolerance(path: str | os.PathLike, scene) -> tuple[dict, str]:
-    """The tolerance a scene is judged by, and where it comes from.
-
-    Returns ``(scene.tolerance, "scene")`` when the scene file has a
-    ``"tolerance"`` key, else ``(defaults, "defaults for base, texture, ...")``
-    from :func:`feature_tolerance`.
-    """
-    try:
-        declared = "tolerance" in json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        declared = True  # load_scene read it; keep what it parsed
-    if declared:
-        return dict(scene.tolerance), "scene"
-    tolerance, features = feature_tolerance(scene)
-    return tolerance, "defaults for " + ", ".join(features)
 
 
 def _matches(name: str, pattern: str) -> bool:
@@ -234,27 +173,6 @@ class SceneResult:
                 "seconds": round(self.seconds, 4)}
 
 
-def _bounds(selection: np.ndarray) -> str:
-    rows, cols = np.nonzero(selection)
-    return f"x {cols.min()}..{cols.max()}, y {rows.min()}..{rows.max()}"
-
-
-def _where_image(soft: np.ndarray, outside: np.ndarray, inside: np.ndarray) -> np.ndarray:
-    """Differences beyond the tolerance: red outside the mask, cyan inside, over soft dimmed."""
-    grey = soft[..., :3].astype(np.float64).mean(axis=-1)
-    out = np.empty(soft.shape[:2] + (4,), dtype=np.uint8)
-    out[..., :3] = np.rint(30 + 0.3 * grey).astype(np.uint8)[..., None]
-    out[inside, :3] = (0, 220, 255)
-    out[outside, :3] = (255, 30, 30)
-    out[..., 3] = 255
-    return out
-
-
-def _tolerance_text(tolerance: dict) -> str:
-    return (f"threshold {tolerance['threshold']}/255, bad pixels <= {100 * tolerance['max_bad_fraction']:.2f}%, "
-            f"SSIM >= {tolerance['min_ssim']:g}")
-
-
 def _render_soft(scene) -> np.ndarray:
     import softras
 
@@ -267,94 +185,26 @@ def _render_gl(scene) -> np.ndarray:
     return glref.render(scene)
 
 
-def judge(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, soft_ids=None, gl_ids=None,
-          soft_last=None, gl_last=None, ambiguity=None) -> tuple[str, list[str], dict, dict]:
-    """The verdict on two pictures of a scene (the two tiers of the module docstring).
+#: The strict profile's verdict (moved to :mod:`softras.verifier`; kept under its old name).
+judge = judge_strict
 
-    Parameters
-    ----------
-    scene : softras.scene.Scene
-    soft, gl : numpy.ndarray
-        ``uint8`` ``(H, W, 4)`` pictures by softras and GL.
-    tolerance : dict
-        ``threshold``, ``max_bad_fraction``, ``min_ssim``.
-    soft_ids, gl_ids : tuple, optional
-        :func:`softras.ambiguity.decode_ids` of both renderers' primitive-ID
-        pictures (for the stage of a failure).
-    soft_last, gl_last : numpy.ndarray, optional
-        Primitive numbers of both renderers' ID pictures without depth test
-        (tell coverage from depth; :func:`softras.ambiguity.classify_differences`).
-    ambiguity : softras.ambiguity.Ambiguity, optional
-        The mask; without it nothing is excused.
 
-    Returns
-    -------
-    verdict : str
-        PASS, WARN or FAIL.
-    reasons : list of str
-    figures : dict
-        JSON-able numbers.
-    images : dict
-        ``diff``, ``ssim``, ``flip``, ``where`` pictures.
-    """
-    from softras.ambiguity import classify_differences
-    from softras.metrics import compare, error_map_image, pixel_difference
+def _gl_info() -> dict:
+    """The reference context's capability record (looked up at call time: tests patch it)."""
+    import glref
 
-    strict = compare(soft, gl, flip=True, **tolerance)
-    pixel_diff = pixel_difference(soft, gl)
-    bad = pixel_diff > tolerance["threshold"]
-    mask = ambiguity.mask if ambiguity is not None else np.zeros_like(bad)
-    outside, inside = bad & ~mask, bad & mask
-    figures = strict.to_dict()
-    figures.pop("passed")
-    figures.update(bad_outside_mask=int(outside.sum()), bad_inside_mask=int(inside.sum()),
-                   differing_pixels=int((pixel_diff > 0).sum()))
-    if ambiguity is not None:
-        figures["ambiguous_pixels"] = ambiguity.counts()
-    if soft_ids is not None and gl_ids is not None:
-        figures["coverage_mismatch_pixels"] = int((soft_ids[0] != gl_ids[0]).sum())
+    return glref.info()
 
-    reasons: list[str] = []
-    if strict.passed:
-        verdict = PASS
-        reasons.append("identical to GL" if strict.max_diff == 0 else
-                       f"within tolerance: max diff {strict.max_diff}/255, {strict.bad_pixels} px beyond "
-                       f"{tolerance['threshold']}/255, SSIM {strict.ssim:.5f}")
-    else:
-        # Second tier: ambiguous pixels count as agreeing (GL's value replaced by softras's).
-        excused = np.where(mask[..., None], soft, gl)
-        relaxed = compare(soft, excused, **tolerance)
-        figures["ssim_excused"] = float(relaxed.ssim)
-        strict_why = (f"{strict.bad_pixels} px ({100 * strict.bad_fraction:.3f}%) differ by more than "
-                      f"{tolerance['threshold']}/255 (max {strict.max_diff}/255), SSIM {strict.ssim:.5f}")
-        if relaxed.passed:
-            verdict = WARN
-            where = ambiguity.label(inside) if ambiguity is not None else {}
-            labels = ", ".join(f"{name} {count}" for name, count in where.items() if count)
-            reasons.append(f"{strict_why}: not within the strict tolerance, but "
-                           + (f"all {int(inside.sum())} are in the ambiguity mask ({labels})"
-                              if inside.any() else "only SSIM fails")
-                           + f"; with them excused: {relaxed.bad_pixels} px beyond, SSIM {relaxed.ssim:.5f}")
-        else:
-            verdict = FAIL
-            reasons.append(f"{strict_why}; {int(outside.sum())} of them outside the ambiguity mask"
-                           + (f" at {_bounds(outside)}" if outside.any() else "")
-                           + f"; with the ambiguous pixels excused: {relaxed.bad_pixels} px "
-                             f"({100 * relaxed.bad_fraction:.3f}%) beyond, SSIM {relaxed.ssim:.5f} "
-                             f"(needs {_tolerance_text(tolerance)})")
-        if soft_ids is not None and gl_ids is not None:
-            selection, where = (outside, "outside the ambiguity mask") if verdict == FAIL else \
-                (inside, "inside the ambiguity mask")
-            reasons.extend(classify_differences(selection, soft_ids, gl_ids, pixel_diff, scene, where=where,
-                                                soft_last=soft_last, gl_last=gl_last))
 
-    images = {"diff": strict.diff_image, "ssim": error_map_image(1.0 - strict.ssim_map),
-              "flip": error_map_image(strict.flip_map), "where": _where_image(soft, outside, inside)}
-    return verdict, reasons, figures, images
+def _unsupported(scene, capabilities: dict) -> str | None:
+    import glref
+
+    return glref.unsupported(scene, capabilities=capabilities)
 
 
 def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
-                render_gl: Callable | None = None, tolerance: dict | None = None) -> SceneResult:
+                render_gl: Callable | None = None, tolerance: dict | None = None,
+                profile: str = "auto") -> SceneResult:
     """Run one scene through both renderers and judge it.
 
     Parameters
@@ -364,18 +214,22 @@ def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
     render_soft, render_gl : callable, optional
         ``render(scene) -> (H, W, 4) uint8``; default softras (precision
         "gl") and glref. (Tests pass broken ones.) ``render_soft`` also draws
-        softras's primitive-ID pictures; the ambiguity mask always comes from
-        the softras pipeline.
+        softras's primitive-ID pictures; the ambiguity mask and the spec
+        bounds always come from the softras pipeline.
     tolerance : dict, optional
         Overrides the scene's tolerance (:func:`scene_tolerance`).
+    profile : "auto", "strict" or "spec"
+        :func:`softras.verifier.choose_profile` with the GL's capability record.
 
     Returns
     -------
     SceneResult
         Never raises for a scene that cannot be rendered or any other error
-        inside the check: the result is a FAIL whose reason says what happened.
+        inside the check: the result is a FAIL whose reason says what happened
+        (NOT SUPPORTED when the GL context lacks what the scene needs).
     """
     from softras import ambiguity as amb
+    from softras import verifier
     from softras.scene import load_scene
 
     render_soft = render_soft or _render_soft
@@ -389,35 +243,49 @@ def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
         result.tolerance, result.tolerance_source = scene_tolerance(path, scene)
         if tolerance is not None:
             result.tolerance, result.tolerance_source = dict(tolerance), "given"
+        capabilities = _gl_info()
+        chosen = verifier.choose_profile(profile, capabilities)
+        reason = _unsupported(scene, capabilities)
+        if reason is not None:
+            result.verdict = NOT_SUPPORTED
+            result.reasons.append(f"this OpenGL ({capabilities.get('GL_RENDERER')}) cannot draw {reason}")
+            return result
         times = {}
         t = time.perf_counter()
-        gl = amb.as_uint8(render_gl(scene))
+        gl = render_gl(scene)
         times["gl_seconds"] = time.perf_counter() - t
-        result.images["gl"] = gl
+        result.images["gl"] = amb.as_uint8(gl)
         t = time.perf_counter()
         try:
-            soft = amb.as_uint8(render_soft(scene))
+            soft = render_soft(scene)
         except NotImplementedError as error:
             result.reasons.append(f"softras cannot render the scene: {_one_line(error)}")
             return result
         times["soft_seconds"] = time.perf_counter() - t
-        result.images["soft"] = soft
+        result.images["soft"] = amb.as_uint8(soft)
         t = time.perf_counter()
-        ambiguity = amb.ambiguity_mask(scene, soft if render_soft is _render_soft else None)
-        ids = amb.id_scene(scene)
-        soft_ids = amb.decode_ids(amb.as_uint8(render_soft(ids)), scene)
-        gl_ids = amb.decode_ids(amb.as_uint8(_render_gl(ids)), scene)
-        no_depth = amb.id_scene(scene, depth_test=False)
-        soft_last = amb.decode_ids(amb.as_uint8(render_soft(no_depth)), scene)[0]
-        gl_last = amb.decode_ids(amb.as_uint8(_render_gl(no_depth)), scene)[0]
-        times["ambiguity_seconds"] = time.perf_counter() - t
-        verdict, reasons, figures, images = judge(scene, soft, gl, result.tolerance, soft_ids=soft_ids,
-                                                  gl_ids=gl_ids, soft_last=soft_last, gl_last=gl_last,
-                                                  ambiguity=ambiguity)
+        if chosen == "spec":
+            bounds = verifier.spec_bounds(scene, capabilities)
+            verdict, reasons, figures, images = verifier.judge_spec(
+                scene, soft, gl, result.tolerance, bounds, draw_ids=verifier.draw_ids(scene))
+            times["bounds_seconds"] = time.perf_counter() - t
+        else:
+            soft, gl = amb.as_uint8(soft), amb.as_uint8(gl)
+            ambiguity = amb.ambiguity_mask(scene, soft if render_soft is _render_soft else None)
+            ids = amb.id_scene(scene)
+            soft_ids = amb.decode_ids(amb.as_uint8(render_soft(ids)), scene)
+            gl_ids = amb.decode_ids(amb.as_uint8(_render_gl(ids)), scene)
+            no_depth = amb.id_scene(scene, depth_test=False)
+            soft_last = amb.decode_ids(amb.as_uint8(render_soft(no_depth)), scene)[0]
+            gl_last = amb.decode_ids(amb.as_uint8(_render_gl(no_depth)), scene)[0]
+            times["ambiguity_seconds"] = time.perf_counter() - t
+            verdict, reasons, figures, images = judge_strict(scene, soft, gl, result.tolerance, soft_ids=soft_ids,
+                                                             gl_ids=gl_ids, soft_last=soft_last, gl_last=gl_last,
+                                                             ambiguity=ambiguity)
+            images["ambiguity"] = ambiguity.image(soft)
         result.verdict, result.reasons = verdict, reasons
         result.figures = figures | {name: round(value, 4) for name, value in times.items()}
         result.images.update(images)
-        result.images["ambiguity"] = ambiguity.image(soft)
     except Exception as error:  # noqa: BLE001 - reported as this scene's failure
         frames = traceback.extract_tb(error.__traceback__)
         place = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
@@ -428,9 +296,9 @@ def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
     return result
 
 
-def _check_in_worker(path: str) -> SceneResult:
+def _check_in_worker(path: str, profile: str = "auto") -> SceneResult:
     """check_scene for a worker process (a top-level function: spawn pickles it by name)."""
-    return check_scene(path)
+    return check_scene(path, profile=profile)
 
 
 # ---------------------------------------------------------------------------
@@ -471,7 +339,7 @@ class ProgressBar:
 
 
 def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], None] | None = None,
-        check: Callable[[str], SceneResult] | None = None) -> list[SceneResult]:
+        check: Callable[[str], SceneResult] | None = None, profile: str = "auto") -> list[SceneResult]:
     """Check scenes, in this process or in ``jobs`` spawned worker processes.
 
     Parameters
@@ -485,6 +353,8 @@ def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], 
     check : callable, optional
         ``check(path) -> SceneResult`` (default :func:`check_scene`); must be
         a top-level function when ``jobs > 1``.
+    profile : str
+        The verification profile of the default check ("auto", "strict", "spec").
 
     Returns
     -------
@@ -501,16 +371,18 @@ def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], 
     """
     if jobs < 1:
         raise ConformanceError(f"-j {jobs}: need at least 1 process")
+    if profile not in PROFILES:
+        raise ConformanceError(f"--profile {profile}: must be one of {', '.join(PROFILES)}")
     results: dict[str, SceneResult] = {}
     names = [str(path) for path in paths]
     if jobs == 1 or len(names) <= 1:
-        check = check or check_scene
+        check = check or functools.partial(check_scene, profile=profile)
         for name in names:
             results[name] = check(name)
             if on_result is not None:
                 on_result(results[name])
     else:
-        check = check or _check_in_worker
+        check = check or functools.partial(_check_in_worker, profile=profile)
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=min(jobs, len(names)), mp_context=context) as pool:
             futures = {pool.submit(check, name): name for name in names}
@@ -530,7 +402,8 @@ def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], 
 
 
 def counts(results: list[SceneResult]) -> dict:
-    """``{"pass": n, "warn": n, "fail": n, "total": n}``."""
-    tally = {verdict: sum(r.verdict == verdict for r in results) for verdict in (PASS, WARN, FAIL)}
+    """``{"pass": n, "quality_warning": n, "fail": n, "not_supported": n, "total": n}``."""
+    tally = {verdict: sum(r.verdict == verdict for r in results)
+             for verdict in (PASS, WARN, FAIL, NOT_SUPPORTED)}
     tally["total"] = len(results)
     return tally

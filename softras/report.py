@@ -25,7 +25,7 @@ import os
 from pathlib import Path
 from xml.etree import ElementTree
 
-from softras.conformance import FAIL, PASS, VERDICT_NAMES, VERDICT_ORDER, WARN, SceneResult, counts
+from softras.conformance import FAIL, NOT_SUPPORTED, PASS, VERDICT_NAMES, VERDICT_ORDER, WARN, SceneResult, counts
 
 __all__ = ["FORMAT", "IMAGE_CAPTIONS", "write_report", "results_json", "junit_xml", "index_html"]
 
@@ -37,13 +37,16 @@ IMAGE_CAPTIONS = {
     "soft": "softras (precision gl)",
     "gl": "GL (glref)",
     "diff": "difference: blue within threshold, red to white beyond",
-    "where": "beyond tolerance: red outside the ambiguity mask, cyan inside",
+    "where": "strict: beyond tolerance, red outside the ambiguity mask, cyan inside; "
+             "spec: outside the bounds, red in softras, magenta in GL",
+    "bound_lo": "spec: lower bound of a conformant picture",
+    "bound_hi": "spec: upper bound of a conformant picture",
     "ssim": "SSIM map: 1 - SSIM, black = same structure",
     "flip": "FLIP map: black = no visible difference",
     "ambiguity": "ambiguity mask: coverage cyan, depth magenta, sampling yellow",
 }
 
-_COLOURS = {FAIL: "#c62828", WARN: "#ef8f00", PASS: "#2e7d32"}
+_COLOURS = {FAIL: "#c62828", WARN: "#ef8f00", NOT_SUPPORTED: "#607d8b", PASS: "#2e7d32"}
 
 _CSS = """
 body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; background: #fafafa; }
@@ -74,7 +77,8 @@ def _image_paths(result: SceneResult) -> dict:
 def results_json(results: list[SceneResult], meta: dict) -> str:
     """results.json: ``{"softras_conformance": 1, "summary": {...}, ..., "scenes": [...]}``.
 
-    ``summary`` has ``pass``, ``warn``, ``fail``, ``total`` and ``seconds``;
+    ``summary`` has ``pass``, ``quality_warning``, ``fail``, ``not_supported``,
+    ``total`` and ``seconds``; ``gl`` (in ``meta``) the GL's capability record;
     each scene is :meth:`SceneResult.to_dict` plus ``images`` (paths relative
     to the report folder), in the order of the run.
     """
@@ -92,26 +96,28 @@ def results_json(results: list[SceneResult], meta: dict) -> str:
 def junit_xml(results: list[SceneResult], meta: dict) -> str:
     """JUnit XML: one ``<testsuite name="softras conformance">``, one ``<testcase>`` per scene.
 
-    FAIL -> ``<failure>`` with the reasons; QUALITY WARNING -> a passing test
-    case with ``<properties><property name="verdict" value="quality_warning">``
-    and the reasons in ``<system-out>`` (JUnit has no warning state).
+    FAIL -> ``<failure>`` with the reasons; NOT SUPPORTED -> ``<skipped>``
+    with the reason; QUALITY WARNING -> a passing test case with
+    ``<properties><property name="verdict" value="quality_warning">`` and the
+    reasons in ``<system-out>`` (JUnit has no warning state).
     """
     tally = counts(results)
     suite = ElementTree.Element("testsuite", {
         "name": "softras conformance", "tests": str(tally["total"]), "failures": str(tally[FAIL]),
-        "errors": "0", "skipped": "0", "time": f"{meta.get('seconds') or 0:.3f}"})
+        "errors": "0", "skipped": str(tally[NOT_SUPPORTED]), "time": f"{meta.get('seconds') or 0:.3f}"})
     for result in results:
         case = ElementTree.SubElement(suite, "testcase", {
             "classname": "conformance", "name": result.name, "file": result.path,
             "time": f"{result.seconds:.3f}"})
         properties = ElementTree.SubElement(case, "properties")
-        verdict = {PASS: "pass", WARN: "quality_warning", FAIL: "fail"}[result.verdict]
-        ElementTree.SubElement(properties, "property", {"name": "verdict", "value": verdict})
+        ElementTree.SubElement(properties, "property", {"name": "verdict", "value": result.verdict})
         text = "\n".join(result.reasons)
         if result.verdict == FAIL:
             failure = ElementTree.SubElement(case, "failure", {
                 "message": result.reasons[0] if result.reasons else "failed", "type": "conformance"})
             failure.text = text
+        elif result.verdict == NOT_SUPPORTED:
+            ElementTree.SubElement(case, "skipped", {"message": text or "not supported"})
         else:
             ElementTree.SubElement(case, "system-out").text = f"{VERDICT_NAMES[result.verdict]}: {text}"
     ElementTree.indent(suite)
@@ -120,17 +126,20 @@ def junit_xml(results: list[SceneResult], meta: dict) -> str:
 
 def _figures_text(figures: dict) -> str:
     keys = ("ssim", "max_diff", "bad_pixels", "bad_fraction", "flip_mean", "bad_outside_mask",
-            "bad_inside_mask", "differing_pixels", "coverage_mismatch_pixels", "ssim_excused")
+            "bad_inside_mask", "differing_pixels", "coverage_mismatch_pixels", "ssim_excused",
+            "outside_image", "outside_reference", "allowance_255")
     parts = []
     for key in keys:
         if key in figures:
             value = figures[key]
             parts.append(f"{key} {value:.5g}" if isinstance(value, float) else f"{key} {value}")
-    if "ambiguous_pixels" in figures:
+    if isinstance(figures.get("ambiguous_pixels"), int):
+        parts.append(f"ambiguous px {figures['ambiguous_pixels']}")
+    elif "ambiguous_pixels" in figures:
         amb = figures["ambiguous_pixels"]
         parts.append("ambiguous px " + ", ".join(f"{k} {v}" for k, v in amb.items()))
     times = [f"{key.replace('_seconds', '')} {figures[key]:.2f} s" for key in
-             ("soft_seconds", "gl_seconds", "ambiguity_seconds") if key in figures]
+             ("soft_seconds", "gl_seconds", "ambiguity_seconds", "bounds_seconds") if key in figures]
     if times:
         parts.append("time " + ", ".join(times))
     return " · ".join(parts)
@@ -146,17 +155,20 @@ def index_html(results: list[SceneResult], meta: dict) -> str:
     tally = counts(results)
     ordered = sorted(results, key=lambda r: (VERDICT_ORDER[r.verdict], r.name))
     worst = FAIL if tally[FAIL] else WARN if tally[WARN] else PASS
+    tested = tally["total"] - tally[NOT_SUPPORTED]
     headline = {FAIL: f"{tally[FAIL]} of {tally['total']} scenes FAILED",
-                WARN: f"all {tally['total']} scenes conform, {tally[WARN]} with quality warnings",
-                PASS: f"all {tally['total']} scenes pass"}[worst]
+                WARN: f"all {tested} scenes tested conform, {tally[WARN]} with quality warnings",
+                PASS: f"all {tested} scenes tested pass"}[worst]
     seconds = meta.get("seconds")
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            "<title>softras conformance</title>", f"<style>{_CSS}</style></head><body>",
            "<h1>softras conformance report</h1>",
            f'<div class="banner" style="background:{_COLOURS[worst]}">{esc(headline)}: '
-           f'{tally[PASS]} pass, {tally[WARN]} quality warning, {tally[FAIL]} fail'
+           f'{tally[PASS]} pass, {tally[WARN]} quality warning, {tally[FAIL]} fail, '
+           f'{tally[NOT_SUPPORTED]} not supported'
            + (f" &middot; {seconds:.1f} s" if seconds is not None else "") + "</div>"]
-    details = [f"GL: {esc(str(meta.get('gl_renderer')))}", f"jobs: {esc(str(meta.get('jobs')))}"]
+    details = [f"GL: {esc(str(meta.get('gl_renderer')))}", f"profile: {esc(str(meta.get('profile')))}",
+               f"jobs: {esc(str(meta.get('jobs')))}"]
     if meta.get("shard"):
         details.append(f"shard {esc(str(meta['shard']))}")
     if meta.get("patterns"):
@@ -165,11 +177,11 @@ def index_html(results: list[SceneResult], meta: dict) -> str:
         details.append(esc(str(meta["date"])))
     out.append(f"<p>{' &middot; '.join(details)}</p>")
     out.append("<p>Verdicts (dEQP's tiers): <b>PASS</b> = softras matches GL within the scene's tolerance "
-               "on every pixel; <b>QUALITY WARNING</b> = it does only once the pixels of the ambiguity mask "
-               "(answers that depend on implementation choices GL allows: coverage within sub-pixel "
-               "precision, depth ties, texel or mip rounding) are excused; <b>FAIL</b> = differences "
-               "beyond the tolerance where the answer is unambiguous. Images: row 0 = top; "
-               "x, y in the reasons count columns and rows from the top left.</p>")
+               "on every pixel (and, in the spec profile, both pictures lie within the bounds of what a "
+               "conformant GL may draw); <b>QUALITY WARNING</b> = they differ only in ways GL allows (strict: "
+               "on the pixels of the ambiguity mask; spec: within the bounds); <b>FAIL</b> = a difference GL "
+               "does not allow; <b>NOT SUPPORTED</b> = the GL context lacks what the scene needs. Images: "
+               "row 0 = top; x, y in the reasons count columns and rows from the top left.</p>")
 
     out.append('<table class="summary"><tr><th>verdict</th><th>scene</th><th>why</th>'
                "<th>SSIM</th><th>max diff</th><th>bad px</th><th>FLIP</th><th>time</th></tr>")
