@@ -92,8 +92,9 @@ class Comparison:
         ``bad_fraction <= max_bad_fraction and ssim >= min_ssim``.
     ssim : float
         Mean structural similarity over all four channels, in [-1, 1].
-    max_diff : int
-        Largest absolute per-channel difference over the image, 0..255.
+    max_diff : int or float
+        Largest absolute per-channel difference over the image, 0..255
+        (a float for float images: their exact difference in 1/255 units).
     bad_fraction : float
         Fraction of pixels whose largest channel difference exceeds
         ``threshold``.
@@ -146,7 +147,7 @@ class Comparison:
         result = {
             "passed": bool(self.passed),
             "ssim": float(self.ssim),
-            "max_diff": int(self.max_diff),
+            "max_diff": self.max_diff if isinstance(self.max_diff, float) else int(self.max_diff),
             "bad_fraction": float(self.bad_fraction),
             "bad_pixels": int(self.bad_pixels),
             "total_pixels": int(width * height),
@@ -175,7 +176,7 @@ class Comparison:
         verdict = "PASS" if self.passed else "FAIL"
         return (
             f"{verdict}  SSIM {self.ssim:.5f} (>= {self.min_ssim:g})  "
-            f"max diff {self.max_diff}/255  "
+            f"max diff {self.max_diff:.3g}/255  "
             f"bad pixels {self.bad_pixels}/{total} = {100 * self.bad_fraction:.3f}% "
             f"(> {self.threshold}/255; allowed {100 * self.max_bad_fraction:.3f}%)"
             + ("" if self.flip_mean is None else f"  FLIP {self.flip_mean:.4f}")
@@ -442,8 +443,8 @@ def _compare_float(a, b, threshold: int, max_bad_fraction: float, min_ssim: floa
     rounded; a uint8 image compared with a float one is read as k/255.  The
     per-pixel difference is the largest channel difference in 1/255 units, a
     float, so ``threshold`` keeps its meaning; ``max_diff`` is that
-    difference rounded up to an integer and ``max_abs_diff`` the exact
-    largest difference in colour units.  SSIM is computed on the values
+    difference as a float (a 2.2e-16 difference is 5.6e-14/255, not 1/255)
+    and ``max_abs_diff`` the largest difference in colour units.  SSIM is computed on the values
     x 255 with ``data_range=255``, as for uint8 images.
     """
     def as_float(image, name):
@@ -473,7 +474,7 @@ def _compare_float(a, b, threshold: int, max_bad_fraction: float, min_ssim: floa
     return Comparison(
         passed=bool(bad_fraction <= max_bad_fraction and ssim >= min_ssim),
         ssim=ssim,
-        max_diff=int(np.ceil(pixel_diff.max())),
+        max_diff=float(pixel_diff.max()),
         bad_fraction=float(bad_fraction),
         bad_pixels=bad_pixels,
         threshold=threshold,

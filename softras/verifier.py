@@ -444,11 +444,11 @@ def judge_spec(scene, image: np.ndarray, reference: np.ndarray, tolerance: dict,
     elif comparison.passed:
         verdict = PASS
         reasons.append("within the spec bounds on every pixel and within tolerance: "
-                       f"max diff {comparison.max_diff}/255, SSIM {comparison.ssim:.5f}")
+                       f"max diff {comparison.max_diff:.3g}/255, SSIM {comparison.ssim:.5f}")
     else:
         verdict = WARN
         reasons.append(f"every pixel within the spec bounds, but {comparison.bad_pixels} px differ by more than "
-                       f"{tolerance['threshold']}/255 (max {comparison.max_diff}/255, SSIM "
+                       f"{tolerance['threshold']}/255 (max {comparison.max_diff:.3g}/255, SSIM "
                        f"{comparison.ssim:.5f}): differences a conformant GL may make")
     images = bounds.images()
     images["diff"] = comparison.diff_image
@@ -535,7 +535,7 @@ def judge_strict(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, so
     if strict.passed:
         verdict = PASS
         reasons.append("identical to GL" if strict.max_diff == 0 else
-                       f"within tolerance: max diff {strict.max_diff}/255, {strict.bad_pixels} px beyond "
+                       f"within tolerance: max diff {strict.max_diff:.3g}/255, {strict.bad_pixels} px beyond "
                        f"{tolerance['threshold']}/255, SSIM {strict.ssim:.5f}")
     else:
         # Second tier: ambiguous pixels count as agreeing (GL's value replaced by softras's).
@@ -543,7 +543,7 @@ def judge_strict(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, so
         relaxed = compare(soft, excused, **tolerance)
         figures["ssim_excused"] = float(relaxed.ssim)
         strict_why = (f"{strict.bad_pixels} px ({100 * strict.bad_fraction:.3f}%) differ by more than "
-                      f"{tolerance['threshold']}/255 (max {strict.max_diff}/255), SSIM {strict.ssim:.5f}")
+                      f"{tolerance['threshold']}/255 (max {strict.max_diff:.3g}/255), SSIM {strict.ssim:.5f}")
         if relaxed.passed:
             verdict = WARN
             where = ambiguity.label(inside) if ambiguity is not None else {}

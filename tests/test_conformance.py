@@ -331,7 +331,7 @@ def test_cli_report_pass_and_fail(tmp_path, capsys):
 
     assert main(["conformance", str(folder), "--report", str(report)]) == 1
     captured = capsys.readouterr()
-    assert "1 pass, 0 quality warning, 1 fail in" in captured.out
+    assert "1 pass, 0 quality warning, 1 fail, 0 not supported in" in captured.out
     assert "[2/2]" in captured.err                        # progress (not a terminal: one line each)
 
     data = json.loads((report / "results.json").read_text())
@@ -396,4 +396,4 @@ def test_report_files_parse_without_gl(tmp_path):
     assert warn.find("failure") is None
     assert warn.find("properties/property").get("value") == "quality_warning"
     assert json.loads((tmp_path / "results.json").read_text())["summary"] == {
-        "pass": 1, "warn": 1, "fail": 1, "total": 3, "seconds": 1.5}
+        "pass": 1, "quality_warning": 1, "fail": 1, "not_supported": 0, "total": 3, "seconds": 1.5}
