@@ -81,6 +81,10 @@ FORMAT = 1
 
 #: The provenance keys that identify the OpenGL implementation.
 _GL_IDENTITY = ("GL_RENDERER", "GL_VERSION", "GL_VENDOR")
+#: The capability record of the GL that drew the images (glref.info()), kept in the manifest.
+CAPABILITY_KEYS = ("GL_SHADING_LANGUAGE_VERSION", "version", "device_index", "subpixel_bits", "max_samples",
+                   "sample_counts", "sample_positions", "max_anisotropy", "max_texture_size",
+                   "max_renderbuffer_size", "max_viewport_dims")
 
 NO_GOLDEN = "no golden image: run softras golden --update"
 
@@ -165,6 +169,7 @@ def provenance(info: dict | None = None) -> dict:
         platform=platform.platform(),
         env=info.get("env"),
         depth_format=info.get("depth_format"),
+        capabilities={key: info.get(key) for key in CAPABILITY_KEYS if key in info},
         date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
     )
     return result
