@@ -77,7 +77,7 @@ def test_info_reports_the_gl():
     info = glref.info()
     for key in ("GL_RENDERER", "GL_VERSION", "GL_VENDOR", "moderngl"):
         assert isinstance(info[key], str) and info[key]
-    assert set(info["env"]) == {"GALLIVM_PERF", "LP_PERF", "LP_NUM_THREADS"}
+    assert set(info["env"]) == {"GALLIUM_DRIVER", "GALLIVM_PERF", "LP_PERF", "LP_NUM_THREADS"}
     assert "depth_format" in info
     # info() hands out a copy: callers cannot change the cached record.
     info["env"]["LP_PERF"] = "changed"
