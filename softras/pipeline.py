@@ -133,7 +133,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     precision : "gl" (llvmpipe's fixed point, float32 vertex math, RGBA8 and
         24-bit depth rounding) or "exact" (float64 throughout, no snapping).
     samples : samples per pixel, overrides ``scene.samples``; 1..1024.
-    pattern : sample pattern (`softras.sampling`); None = GL's (1 or 4 samples).
+    pattern : sample pattern (`softras.sampling`); None = GL's (1 or 4 samples);
+        or an (S, 2) array of positions (a GL's own, y up).
     seed : seed of the random patterns ("jittered", "poisson").
     resolve_filter : "box" (the pixel's own samples) or "tent" (a 2-pixel-wide
         tent over the 3 x 3 neighbourhood's samples), see `softras.ops.resolve`.
@@ -163,6 +164,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
         raise ValueError(f"resolve_filter must be one of {ops.RESOLVE_FILTERS}, not {resolve_filter!r}")
     texture_beyond.check_texture_filter(texture_filter, scene.textures)
     positions = sample_positions(samples or scene.samples, pattern, seed)
+    gl_pattern = pattern is None or (isinstance(pattern, str) and pattern == "gl")
     n_samples = len(positions)
     size = scene.width * scene.height * n_samples * 4 * 8
     if size > MAX_SAMPLE_BYTES:
@@ -175,7 +177,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     # only what `softras.fastpath` implements gets the same bytes from its
     # fused kernel (tests/test_fastpath.py).  A new option must either send
     # scenes that use it past this test or be implemented there.
-    fast = (fast_path and rgba8 and pattern in (None, "gl") and texture_filter is None
+    fast = (fast_path and rgba8 and gl_pattern and texture_filter is None
             and fastpath.unsupported(scene, precision=precision, samples=n_samples, clipping=clipping) is None)
     if fast:
         stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point,
@@ -192,7 +194,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
         color[:, :, start:stop] = part
     # GL's MSAA resolve (llvmpipe's float32 arithmetic) for GL's patterns in gl
     # precision; the exact float64 mean otherwise.
-    arithmetic = "llvmpipe" if precision == "gl" and pattern in (None, "gl") else "exact"
+    arithmetic = "llvmpipe" if precision == "gl" and gl_pattern else "exact"
     return ops.resolve(color, positions, filter=resolve_filter, arithmetic=arithmetic,
                        output="uint8" if rgba8 else "float32")
 

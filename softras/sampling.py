@@ -162,13 +162,21 @@ def sample_passes(samples: int) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
-def sample_positions(samples: int, pattern: str | None = None, seed: int = 0) -> np.ndarray:
+def sample_positions(samples: int, pattern=None, seed: int = 0) -> np.ndarray:
     """(samples, 2) float64 positions in [0, 1)^2 for a pattern name (see the module docstring).
 
-    pattern None means "gl".  Raises ValueError, naming the problem, for an
+    pattern None means "gl"; an (samples, 2) array gives the positions
+    themselves (e.g. a GL's own, from glGetMultisamplefv: y up, from the
+    pixel's lower-left corner).  Raises ValueError, naming the problem, for an
     unknown pattern or a sample count the pattern cannot make.
     """
     pattern = "gl" if pattern is None else pattern
+    if not isinstance(pattern, str):
+        positions = np.asarray(pattern, dtype=np.float64)
+        if positions.shape != (samples, 2) or not ((positions >= 0) & (positions < 1)).all():
+            raise ValueError(f"sample positions must be a ({samples}, 2) array in [0, 1), "
+                             f"not shape {positions.shape}")
+        return positions
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)):
         raise ValueError(f"samples must be an integer, not {samples!r}")
     samples = int(samples)

@@ -31,6 +31,9 @@ coverage              GL 4.6 section 14.6.1 samples the polygon at the
                       down and up (every edge moves by >= 2^-bits, the
                       largest snapping error), and softras's float64 "exact"
                       precision beside its llvmpipe-exact "gl" one.
+sample positions      section 14.3.1: where the reference GL reports
+                      (glGetMultisamplefv) positions other than softras's
+                      GL pattern, every variant samples at the reference's.
 depth ties            section 14.6.1 / 17.3.4: depth is interpolated and
                       rounded by the implementation: ties between surfaces
                       at equal depth may break either way (the scene with
@@ -288,6 +291,28 @@ def _widen_lines(lo: np.ndarray, hi: np.ndarray, lines: np.ndarray) -> tuple[np.
     return np.where(near[..., None], wide_lo, lo), np.where(near[..., None], wide_hi, hi)
 
 
+def _gl_positions(scene, capabilities: dict):
+    """The reference GL's sample positions for the scene's sample count when
+    they are not softras's GL pattern (llvmpipe's), else None.
+
+    Section 14.3.1 leaves the positions to the implementation and
+    glGetMultisamplefv reports them; the bounds sample where the reference does.
+    """
+    if scene.samples == 1:
+        return None
+    places = (capabilities.get("sample_positions") or {}).get(str(scene.samples))
+    if places is None:
+        return None
+    from softras.sampling import sample_positions
+
+    try:
+        own = sample_positions(scene.samples)
+    except ValueError:
+        own = None
+    places = np.asarray(places, np.float64)
+    return None if own is not None and np.array_equal(own, places) else places
+
+
 def _without_lines(scene):
     """The scene without its line draws."""
     return dataclasses.replace(scene, draws=tuple(d for d in scene.draws if d.mesh.primitive != "lines"))
@@ -352,9 +377,12 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
             for side in ("lo", "hi"):
                 variants.append((f"texture bounds {side} ({precision})", scene,
                                  {"precision": precision, "texture_bounds": side}))
+    pattern = _gl_positions(scene, caps)
     lo = hi = None
     pictures = {}
     for name, variant, options in variants:
+        if pattern is not None:
+            options = options | {"pattern": pattern}
         picture = pictures[name] = _as_unit(render(variant, **options))
         lo = picture if lo is None else np.minimum(lo, picture)
         hi = picture if hi is None else np.maximum(hi, picture)

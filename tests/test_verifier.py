@@ -73,6 +73,18 @@ def test_bounds_hold_softras_own_renders_and_widen_only_near_edges():
     assert ((coarse.hi - coarse.lo) > 1e-9).any(axis=-1).sum() >= wide.sum()
 
 
+def test_bounds_sample_where_the_reference_gl_does():
+    scene = softras.load_scene(SCENES / "msaa_fan.json")
+    llvmpipe = render_scene(scene)                  # llvmpipe's 4x positions
+    same = {"subpixel_bits": 8, "sample_positions": {"4": [[0.375, 0.125], [0.875, 0.375],
+                                                          [0.125, 0.625], [0.625, 0.875]]}}
+    grid = {"subpixel_bits": 8, "sample_positions": {"4": [[0.25, 0.25], [0.75, 0.25],
+                                                          [0.25, 0.75], [0.75, 0.75]]}}
+    assert not verifier._outside(llvmpipe, verifier.spec_bounds(scene, same))[0].any()
+    assert verifier._outside(llvmpipe, verifier.spec_bounds(scene, grid))[0].sum() > 50
+    assert not verifier._outside(render_scene(scene, pattern="grid"), verifier.spec_bounds(scene, grid))[0].any()
+
+
 def _fake_render(broken_pixel):
     """A render function that plants a one-pixel bug in every variant: the
     bounds move with it, so GL's correct picture falls outside."""
