@@ -1,0 +1,268 @@
+"""Texture lookup bounds (softras.texture_bounds): what any conformant GL may return.
+
+Unit tests: the bounds contain softras's llvmpipe-precision and exact-precision
+lookups for every filter / wrap pair, they are tight where GL leaves no room,
+and each freedom (LOD range, min / mag switch, mip rounding, texel data)
+widens them where it should.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+import pytest
+
+from softras import interpolate, texels, texture
+from softras import texture_bounds as tb
+
+MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
+               "nearest_mipmap_linear", "linear_mipmap_linear")
+WRAPS = ("repeat", "clamp_to_edge", "mirrored_repeat")
+EPS = 1e-9
+
+
+def make_texture(kind="noise", size=(37, 23), min_filter="linear_mipmap_linear", mag_filter="linear",
+                 wrap_s="repeat", wrap_t="repeat", max_anisotropy=1.0):
+    if kind == "noise":
+        level0 = texels.procedural_texels("noise", size, {"seed": 3})
+    else:
+        level0 = texels.procedural_texels("checker", size, {"squares": 8, "color0": [0.9, 0.9, 0.85, 1],
+                                                            "color1": [0.15, 0.2, 0.6, 1]})
+    chain = texels.mip_chain(texels.premultiply_rgba8(level0))
+    return texture.MipTexture("t", chain, wrap_s, wrap_t, min_filter, mag_filter, max_anisotropy)
+
+
+def solid_levels_texture(min_filter, mag_filter="linear", size=64):
+    """Every level one solid colour: level k has red 30 k + 10, green 250 - 30 k."""
+    levels = []
+    for k, (w, h) in enumerate(texels.mip_sizes(size, size)):
+        level = np.zeros((h, w, 4), np.uint8)
+        level[..., 0], level[..., 1], level[..., 3] = 30 * k + 10, 250 - 30 * k, 255
+        levels.append(level)
+    return texture.MipTexture("solid", tuple(levels), "repeat", "repeat", min_filter, mag_filter, 1.0)
+
+
+def footprint(lam, size):
+    """Derivatives (F, 2) with rho = m_u = 2^lam and m_v = 0 (ddx along s, ddy = 0):
+    every approximation of rho agrees, lambda's range is only the LOD errors wide."""
+    lam = np.atleast_1d(np.asarray(lam, np.float64))
+    ddx = np.stack([np.exp2(lam) / size[0], np.zeros_like(lam)], 1)
+    return ddx, np.zeros_like(ddx)
+
+
+def random_footprints(rng, n, size, lam=(-4, 7)):
+    st = rng.uniform(-2, 3, (n, 2))
+    scale = 2.0 ** rng.uniform(*lam, n)[:, None] / size[0]
+    angle = rng.uniform(0, np.pi, n)
+    ddx = np.stack([np.cos(angle), np.sin(angle)], 1) * scale
+    ddy = np.stack([-np.sin(angle), np.cos(angle)], 1) * scale * rng.uniform(0.2, 1.5, n)[:, None]
+    return st, ddx, ddy
+
+
+# --------------------------------------------------------------------------- pieces
+
+
+def test_float_error_is_a_power_of_two_below_the_value():
+    np.testing.assert_array_equal(tb.float_error(np.array([1.0, 3.0, -0.75, 0.0]), 20),
+                                  [2.0 ** -20, 2.0 ** -19, 2.0 ** -21, 0.0])
+
+
+def test_log2_error_is_the_piecewise_linear_log2s():
+    x = np.linspace(1, 2, 100001, dtype=np.float32)
+    worst = float(np.max(np.log2(x.astype(np.float64)) - texture.fast_log2(x)))
+    assert worst == pytest.approx(tb.LOG2_PIECEWISE_LINEAR_ERROR, abs=1e-6)
+    assert tb.LOD.log2_error >= tb.LOG2_PIECEWISE_LINEAR_ERROR
+
+
+def test_lambda_range_holds_every_permitted_rho():
+    """The spec's exact rho, its two approximations and llvmpipe's lambda
+    (float32 rho^2, piecewise-linear log2) all fall in the range."""
+    rng = np.random.default_rng(0)
+    size = (37, 23)
+    _, ddx, ddy = random_footprints(rng, 5000, size)
+    lam_lo, lam_hi = tb.lambda_range(tb.single_derivatives(ddx, ddy), size)
+    du, dv = texture.texel_derivatives(ddx, ddy, size, gl=False)
+    m_u = np.maximum(np.abs(du[:, 0]), np.abs(dv[:, 0]))
+    m_v = np.maximum(np.abs(du[:, 1]), np.abs(dv[:, 1]))
+    exact = 0.5 * np.log2(texture.rho_squared(du, dv))
+    du32, dv32 = texture.texel_derivatives(ddx, ddy, size, gl=True)
+    llvmpipe = 0.5 * texture.fast_log2(texture.rho_squared(du32, dv32)).astype(np.float64)
+    for lam in (exact, llvmpipe, np.log2(np.maximum(m_u, m_v)), np.log2(m_u + m_v)):
+        assert np.all((lam_lo <= lam) & (lam <= lam_hi))
+    # and no wider than the freedoms: one level (m_u + m_v <= 2 max) plus the LOD errors
+    assert np.max(lam_hi - lam_lo) <= 1 + 2 * 2.0 ** -tb.LOD.lod_bits + tb.LOD.log2_error + 1e-4
+
+
+def test_fragment_derivatives_hold_the_pipelines_two():
+    """Candidate 0 is llvmpipe's quad difference (interpolate.quad_derivatives,
+    within its float32 rounding), candidate 4 the analytic derivative."""
+    rng = np.random.default_rng(1)
+    n = 200
+    vertices = np.broadcast_to(np.array([[3.0, 4.0, 0.5], [90.0, 10.0, 0.5], [40.0, 70.0, 0.5]]), (n, 3, 3))
+    inv_w = np.broadcast_to(np.array([1.0, 0.25, 0.5]), (n, 3))
+    values = np.broadcast_to(np.array([[0.0, 0.0], [6.0, 1.0], [2.0, 16.0]]), (n, 3, 2))
+    x, y = rng.integers(20, 50, n), rng.integers(10, 40, n)
+    centres = np.stack([x + 0.5, y + 0.5], 1)
+    c = tb.fragment_derivatives(vertices, inv_w, x, y, centres, values)
+    qx, qy = interpolate.quad_derivatives(vertices, inv_w, x, y, values)
+    assert np.all(np.abs(c.ddx[0] - qx) <= c.error[0]) and np.all(np.abs(c.ddy[0] - qy) <= c.error[0])
+    ax, ay = interpolate.analytic_derivatives(vertices, inv_w, centres, values)
+    np.testing.assert_array_equal(c.ddx[4], ax)
+    np.testing.assert_array_equal(c.ddy[4], ay)
+    assert c.ddx.shape == (5, n, 2)
+
+
+# --------------------------------------------------------------------------- containment
+
+
+@pytest.mark.parametrize("min_filter", MIN_FILTERS)
+@pytest.mark.parametrize("mag_filter", ("nearest", "linear"))
+@pytest.mark.parametrize("wrap", WRAPS)
+@pytest.mark.parametrize("kind,size", [("noise", (37, 23)), ("checker", (64, 64))])
+def test_bounds_hold_softras_lookups(min_filter, mag_filter, wrap, kind, size):
+    """llvmpipe's arithmetic (8.8 fixed point and float) and the exact one,
+    at random points and footprints, lie within the bounds from the same
+    derivatives."""
+    tex = make_texture(kind, size, min_filter, mag_filter, wrap, wrap)
+    rng = np.random.default_rng(zlib.crc32(f"{min_filter} {mag_filter} {wrap} {kind}".encode()))
+    st, ddx, ddy = random_footprints(rng, 4000, size)
+    lo, hi = tb.lookup_bounds(tex, st, tb.single_derivatives(ddx, ddy))
+    assert np.all(lo <= hi)
+    for precision, fixed in (("gl", True), ("gl", False), ("exact", False)):
+        value = texture.sample(tex, st, ddx, ddy, precision, fixed)
+        outside = (value < lo - EPS) | (value > hi + EPS)
+        assert not outside.any(), f"{precision} fixed={fixed}: {outside.any(1).sum()} lookups outside"
+
+
+@pytest.mark.parametrize("min_filter", ("linear_mipmap_linear", "nearest_mipmap_nearest", "linear"))
+@pytest.mark.parametrize("wrap", WRAPS)
+def test_anisotropic_bounds_hold_llvmpipe_ewa_and_spec_probes(min_filter, wrap):
+    tex = make_texture("checker", (128, 128), min_filter, "linear", wrap, wrap, max_anisotropy=16.0)
+    rng = np.random.default_rng(7)
+    n = 2000
+    st = rng.uniform(-2, 3, (n, 2))
+    minor = 2.0 ** rng.uniform(-3, 4, n)
+    major = minor * 2.0 ** rng.uniform(0, 5, n)
+    angle = rng.uniform(0, np.pi, n)
+    c, s = np.cos(angle), np.sin(angle)
+    ddx = np.stack([c * major, s * major], 1) / 128
+    ddy = np.stack([-s * minor, c * minor], 1) / 128
+    lo, hi = tb.lookup_bounds(tex, st, tb.single_derivatives(ddx, ddy))
+    for precision in ("gl", "exact"):
+        value = texture.sample(tex, st, ddx, ddy, precision)
+        assert not ((value < lo - 1e-5) | (value > hi + 1e-5)).any(), precision   # float32 EWA sums
+
+
+# --------------------------------------------------------------------------- tightness and each freedom
+
+
+def test_magnified_nearest_at_texel_centres_is_exact():
+    tex = make_texture("noise", (37, 23), "nearest_mipmap_nearest", "nearest")
+    i, j = np.meshgrid(np.arange(37), np.arange(23))
+    st = np.stack([(i.ravel() + 0.5) / 37, (j.ravel() + 0.5) / 23], 1)
+    ddx, ddy = footprint(np.full(len(st), -2.0), tex.size)
+    lo, hi = tb.lookup_bounds(tex, st, tb.single_derivatives(ddx, ddy))
+    texel = tex.levels[0][j.ravel(), i.ravel()] / 255.0
+    np.testing.assert_array_equal(lo, texel)
+    np.testing.assert_array_equal(hi, texel)
+
+
+def test_magnified_linear_at_texel_centres_is_tight():
+    """Exact with no coordinate or arithmetic room; otherwise within the
+    2^-7 texel box's share of the neighbours plus the colour threshold."""
+    tex = make_texture("noise", (37, 23), "linear_mipmap_linear", "linear")
+    i, j = np.meshgrid(np.arange(37), np.arange(23))
+    st = np.stack([(i.ravel() + 0.5) / 37, (j.ravel() + 0.5) / 23], 1)
+    ddx, ddy = footprint(np.full(len(st), -1.0), tex.size)
+    c = tb.single_derivatives(ddx, ddy)
+    texel = tex.levels[0][j.ravel(), i.ravel()] / 255.0
+    no_room = tb.LookupPrecision(coord_bits=52, uvw_bits=40, color_threshold=0.0)
+    lo, hi = tb.lookup_bounds(tex, st, c, lookup=no_room)
+    np.testing.assert_allclose(lo, texel, atol=1e-9)
+    np.testing.assert_allclose(hi, texel, atol=1e-9)
+    lo, hi = tb.lookup_bounds(tex, st, c)
+    assert np.all((lo <= texel) & (texel <= hi))
+    assert np.max(hi - lo) <= 2 * (2.0 ** -7 + 2.0 ** -12) + 2 * tb.LOOKUP.color_threshold
+
+
+def test_uniform_texture_bounds_are_exact_at_any_lod():
+    level0 = np.zeros((16, 16, 4), np.uint8)
+    level0[...] = (200, 100, 50, 255)
+    tex = texture.MipTexture("u", texels.mip_chain(level0), "repeat", "repeat", "linear_mipmap_linear",
+                             "linear", 1.0)
+    rng = np.random.default_rng(3)
+    st, ddx, ddy = random_footprints(rng, 500, (16, 16))
+    lo, hi = tb.lookup_bounds(tex, st, tb.single_derivatives(ddx, ddy))
+    np.testing.assert_array_equal(lo, np.broadcast_to(level0[0, 0] / 255.0, lo.shape))
+    np.testing.assert_array_equal(hi, lo)
+
+
+def test_trilinear_range_spans_levels_and_their_blends():
+    tex = solid_levels_texture("linear_mipmap_linear")
+    colour = {k: tex.levels[k][0, 0] / 255.0 for k in range(len(tex.levels))}
+    st = np.full((2, 2), 0.3)
+    ddx, ddy = footprint([1.0, 1.3], tex.size)       # lambda 1 (the range straddles it), 1.3 (inside [1, 2])
+    lo, hi = tb.lookup_bounds(tex, st, tb.single_derivatives(ddx, ddy))
+    lam_lo, lam_hi = tb.lambda_range(tb.single_derivatives(ddx, ddy), tex.size)
+    # lambda 1: the range reaches below 1, so level 0 enters the blend: red spans both sides of level 1's
+    assert lo[0, 0] < colour[1][0] < hi[0, 0]
+    # lambda 1.3: red is linear in lambda, so the bounds are the blends at the range's ends (+- threshold)
+    blend = [colour[1] + (lam - 1) * (colour[2] - colour[1]) for lam in (lam_lo[1], lam_hi[1])]
+    assert lo[1, 0] == pytest.approx(blend[0][0] - tb.LOOKUP.color_threshold, abs=1e-9)
+    assert hi[1, 0] == pytest.approx(blend[1][0] + tb.LOOKUP.color_threshold, abs=1e-9)
+
+
+def test_mipmap_nearest_takes_both_roundings_at_a_half():
+    tex = solid_levels_texture("nearest_mipmap_nearest", "nearest")
+    st = np.full((3, 2), 0.3)
+    ddx, ddy = footprint([1.5, 1.2, 1.8], tex.size)
+    lo, hi = tb.lookup_bounds(tex, st, tb.single_derivatives(ddx, ddy))
+    red = [tex.levels[k][0, 0, 0] / 255.0 for k in range(4)]
+    assert (lo[0, 0], hi[0, 0]) == (red[1], red[2])        # ceil(1.5 + 1/2) - 1 = 1 or floor(2.0) = 2
+    assert (lo[1, 0], hi[1, 0]) == (red[1], red[1])
+    assert (lo[2, 0], hi[2, 0]) == (red[2], red[2])
+
+
+def test_min_and_mag_filters_are_both_candidates_near_lambda_zero():
+    """Nearest magnification, linear minification: at a texel edge the two
+    disagree; near lambda 0 the bounds hold both, away from it only one."""
+    tex = make_texture("noise", (16, 16), "linear", "nearest")
+    st = np.array([[4.02 / 16, 0.5 / 16]] * 3)
+    ddx, ddy = footprint([0.0, -1.0, 1.0], tex.size)
+    lo, hi = tb.lookup_bounds(tex, st, tb.single_derivatives(ddx, ddy))
+    mag, mini = (texture.filter_level(tex.levels[0], st[:1, 0], st[:1, 1], image_filter, "repeat", "repeat",
+                                      False, False) for image_filter in ("nearest", "linear"))
+    both = np.concatenate([mag, mini]) / 255.0
+    assert np.all(lo[0] <= both.min(0)) and np.all(both.max(0) <= hi[0])
+    np.testing.assert_array_equal(lo[1], mag[0] / 255.0)           # only magnified: exact nearest texel
+    # only minified: linear, within the threshold and the 2^-7-texel box along both axes
+    assert np.all(np.abs(lo[2] - mini[0] / 255.0) <= tb.LOOKUP.color_threshold + 2 * 2.0 ** -7)
+
+
+def test_texel_bounds_widen_the_result():
+    tex = make_texture("noise", (37, 23), "linear_mipmap_linear", "nearest")
+    rng = np.random.default_rng(5)
+    st, ddx, ddy = random_footprints(rng, 1000, tex.size)
+    c = tb.single_derivatives(ddx, ddy)
+    lo, hi = tb.lookup_bounds(tex, st, c)
+    down = tuple(np.clip(level.astype(int) - 10, 0, 255) for level in tex.levels)
+    up = tuple(np.clip(level.astype(int) + 10, 0, 255) for level in tex.levels)
+    lo2, hi2 = tb.lookup_bounds(tex, st, c, levels_lo=down, levels_hi=up)
+    assert np.all(lo2 <= lo + EPS) and np.all(hi2 >= hi - EPS)
+    # by the full 10 where the shifted texels are not clipped at 0 or 255 (alpha is 255 throughout)
+    assert np.median(lo - lo2) >= 10 / 255 - EPS and np.median((hi2 - hi)[:, :3]) >= 10 / 255 - EPS
+
+
+def test_variant_derivatives_hit_the_extreme_lambdas():
+    tex = make_texture("noise", (64, 64), "linear_mipmap_linear", "linear")
+    rng = np.random.default_rng(6)
+    _, ddx, ddy = random_footprints(rng, 500, tex.size, lam=(0.1, 5))
+    c = tb.single_derivatives(ddx, ddy)
+    lam_lo, lam_hi = tb.lambda_range(c, tex.size)
+    for precision in ("gl", "exact"):
+        for side, lam in (("lo", lam_lo), ("hi", lam_hi)):
+            _, vx, vy = tb.variant_derivatives(tex, c, side, precision)
+            du, dv = texture.texel_derivatives(vx, vy, tex.size, precision == "gl")
+            choice = texture.choose_levels(texture.rho_squared(du, dv), tex.min_filter, 7, precision == "gl")
+            np.testing.assert_allclose(choice.level0 + choice.frac, np.clip(lam, 0, 6), atol=1e-5)
