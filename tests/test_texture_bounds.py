@@ -4,22 +4,35 @@ Unit tests: the bounds contain softras's llvmpipe-precision and exact-precision
 lookups for every filter / wrap pair, they are tight where GL leaves no room,
 and each freedom (LOD range, min / mag switch, mip rounding, texel data)
 widens them where it should.
+
+Renders: ``render_scene(texture_bounds="lo" / "hi")`` at precision "gl" and
+"exact" (their per-channel min and max) hold softras's own pictures.
+Discrimination: planted bugs rendered by softras leave many pixels outside
+the unmodified scene's bounds widened by T = 2/255, coverage-edge pixels
+excluded.
+
+Run with ``pytest -s`` to see the counts.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 
 import numpy as np
 import pytest
 
-from softras import interpolate, texels, texture
+import softras
+from conftest import SCENES
+from softras import ambiguity, interpolate, texels, texture
 from softras import texture_bounds as tb
+from softras.pipeline import render_scene
 
 MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
                "nearest_mipmap_linear", "linear_mipmap_linear")
 WRAPS = ("repeat", "clamp_to_edge", "mirrored_repeat")
 EPS = 1e-9
+T = 2                                   # the verifier's shading tolerance, 1/255 units
 
 
 def make_texture(kind="noise", size=(37, 23), min_filter="linear_mipmap_linear", mag_filter="linear",
@@ -266,3 +279,120 @@ def test_variant_derivatives_hit_the_extreme_lambdas():
             du, dv = texture.texel_derivatives(vx, vy, tex.size, precision == "gl")
             choice = texture.choose_levels(texture.rho_squared(du, dv), tex.min_filter, 7, precision == "gl")
             np.testing.assert_allclose(choice.level0 + choice.frac, np.clip(lam, 0, 6), atol=1e-5)
+
+
+# --------------------------------------------------------------------------- renders
+
+
+def scene_envelope(scene):
+    """Per-channel min and max (H, W, 4) int of the bounds renders "lo" and
+    "hi" at precision "gl" and "exact" (for normal / bump maps the renders
+    are variants, so the min and max are over all four)."""
+    renders = [render_scene(scene, precision=precision, texture_bounds=side).astype(int)
+               for precision in ("gl", "exact") for side in tb.SIDES]
+    return np.minimum.reduce(renders), np.maximum.reduce(renders)
+
+
+def coverage_edges(scene):
+    """(H, W) bool: pixels whose visible primitive changes between softras's
+    gl and exact renders or under a 1/256-pixel move (`softras.ambiguity`)."""
+    ids = ambiguity.id_scene(scene)
+    base = ambiguity.decode_ids(render_scene(ids, precision="gl"), scene)[0]
+    edge = ambiguity.decode_ids(render_scene(ids, precision="exact"), scene)[0] != base
+    for dx, dy in ambiguity.SHIFTS:
+        moved = render_scene(ambiguity.shifted_scene(ids, dx, dy), precision="gl")
+        edge |= ambiguity.decode_ids(moved, scene)[0] != base
+    return edge
+
+
+_ENVELOPES: dict = {}
+
+
+def envelope(name):
+    """(scene, lo, hi, edge) of scenes/<name>.json, computed once per session."""
+    if name not in _ENVELOPES:
+        scene = softras.load_scene(SCENES / f"{name}.json")
+        _ENVELOPES[name] = (scene, *scene_envelope(scene), coverage_edges(scene))
+    return _ENVELOPES[name]
+
+
+def outside(image, lo, hi, edge, tolerance=T):
+    """(H, W) bool: pixels with a channel outside [lo - tolerance, hi + tolerance], edges excluded."""
+    image = image.astype(int)
+    return ((image < lo - tolerance) | (image > hi + tolerance)).any(-1) & ~edge
+
+
+@pytest.mark.parametrize("name", ["texture_floor_trilinear", "texture_npot", "texture_wrap_modes",
+                                  "texture_anisotropic_floor", "texture_mip_level_colors"])
+def test_bounds_renders_hold_softras_renders(name):
+    """The stages' own pictures (both precisions, fixed and float filtering)
+    lie within the bounds renders without any tolerance."""
+    scene, lo, hi, edge = envelope(name)
+    for options in ({"precision": "gl"}, {"precision": "gl", "texture_fixed_point": False},
+                    {"precision": "exact"}):
+        image = render_scene(scene, **options)
+        assert not outside(image, lo, hi, np.zeros_like(edge), tolerance=0).any(), options
+
+
+def test_texture_bounds_option_is_checked():
+    scene = softras.load_scene(SCENES / "texture_npot.json")
+    with pytest.raises(ValueError, match="texture_bounds"):
+        render_scene(scene, texture_bounds="mid")
+    with pytest.raises(ValueError, match="texture_filter"):
+        render_scene(scene, texture_bounds="lo", texture_filter="ewa")
+
+
+# --------------------------------------------------------------------------- planted bugs
+
+
+def _with_textures(scene, change):
+    return dataclasses.replace(scene, textures={name: dataclasses.replace(tex, **change(tex))
+                                                for name, tex in scene.textures.items()})
+
+
+def _uv_half_texel(scene):
+    draws = []
+    for draw in scene.draws:
+        tex = scene.textures.get(draw.material.texture)
+        if tex is not None and draw.mesh.uvs is not None:
+            h, w = tex.levels[0].shape[:2]
+            moved = dataclasses.replace(draw.mesh, uvs=draw.mesh.uvs + [0.5 / w, 0.5 / h])
+            draw = dataclasses.replace(draw, mesh=moved)
+        draws.append(draw)
+    return dataclasses.replace(scene, draws=tuple(draws))
+
+
+_SWAP = {"repeat": "clamp_to_edge", "clamp_to_edge": "repeat", "mirrored_repeat": "mirrored_repeat"}
+BUGS = {
+    "uv_half_texel": _uv_half_texel,
+    "wrap_repeat_clamp_swapped": lambda s: _with_textures(
+        s, lambda t: {"wrap_s": _SWAP[t.wrap_s], "wrap_t": _SWAP[t.wrap_t]}),
+    "trilinear_as_mipmap_nearest": lambda s: _with_textures(
+        s, lambda t: {"min_filter": t.min_filter.replace("_mipmap_linear", "_mipmap_nearest")}),
+    "mipmaps_dropped": lambda s: _with_textures(s, lambda t: {"min_filter": t.min_filter.split("_")[0]}),
+}
+# (scene, bug) -> the fewest pixels it must put outside (measured counts in the commit message);
+# pairs where the bug changes nothing (no trilinear texture, nothing minified) are left out.
+BUG_CASES = {
+    ("texture_floor_trilinear", "uv_half_texel"): 500,
+    ("texture_floor_trilinear", "wrap_repeat_clamp_swapped"): 500,
+    ("texture_floor_trilinear", "trilinear_as_mipmap_nearest"): 50,
+    ("texture_floor_trilinear", "mipmaps_dropped"): 500,
+    ("texture_mip_level_colors", "uv_half_texel"): 500,
+    ("texture_mip_level_colors", "wrap_repeat_clamp_swapped"): 500,
+    ("texture_mip_level_colors", "mipmaps_dropped"): 500,
+    ("texture_npot", "uv_half_texel"): 500,
+    ("texture_npot", "wrap_repeat_clamp_swapped"): 500,
+    ("texture_npot", "trilinear_as_mipmap_nearest"): 100,
+    ("texture_npot", "mipmaps_dropped"): 500,
+    ("texture_wrap_modes", "uv_half_texel"): 500,
+    ("texture_wrap_modes", "wrap_repeat_clamp_swapped"): 500,
+}
+
+
+@pytest.mark.parametrize("name,bug", sorted(BUG_CASES))
+def test_planted_bugs_leave_the_bounds(name, bug):
+    scene, lo, hi, edge = envelope(name)
+    count = int(outside(render_scene(BUGS[bug](scene)), lo, hi, edge).sum())
+    print(f"\n{name} {bug}: {count} pixels outside")
+    assert count >= BUG_CASES[name, bug]
