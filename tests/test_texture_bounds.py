@@ -5,25 +5,30 @@ lookups for every filter / wrap pair, they are tight where GL leaves no room,
 and each freedom (LOD range, min / mag switch, mip rounding, texel data)
 widens them where it should.
 
-Renders: ``render_scene(texture_bounds="lo" / "hi")`` at precision "gl" and
-"exact" (their per-channel min and max) hold softras's own pictures.
-Discrimination: planted bugs rendered by softras leave many pixels outside
-the unmodified scene's bounds widened by T = 2/255, coverage-edge pixels
-excluded.
+Against OpenGL (marked ``gl``): every textured scene's picture from llvmpipe
+and from softpipe (an independent GL 3.3 implementation; GALLIUM_DRIVER is
+read at context creation, so each driver renders in its own subprocess) lies
+within softras's bounds renders, ``render_scene(texture_bounds="lo" / "hi")``
+at precision "gl" and "exact" (their per-channel min and max), widened by
+T = 2/255, except on coverage-edge pixels.  Discrimination: planted bugs
+rendered by softras leave many pixels outside the unmodified scene's bounds.
 
-Run with ``pytest -s`` to see the counts.
+Run with ``pytest -s`` to see the per-scene counts.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 import zlib
 
 import numpy as np
 import pytest
 
 import softras
-from conftest import SCENES
+from conftest import REPO, SCENES
 from softras import ambiguity, interpolate, texels, texture
 from softras import texture_bounds as tb
 from softras.pipeline import render_scene
@@ -33,6 +38,12 @@ MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nea
 WRAPS = ("repeat", "clamp_to_edge", "mirrored_repeat")
 EPS = 1e-9
 T = 2                                   # the verifier's shading tolerance, 1/255 units
+
+BOUND_SCENES = ["texture_anisotropic_floor", "texture_floor_trilinear", "texture_mip_level_colors",
+                "texture_npot", "texture_photo", "texture_wrap_modes", "lit_textured_sphere",
+                "extreme_texture_1x1", "extreme_texture_magnify", "extreme_texture_strip"]
+VARIANT_SCENES = ["bump_mapped_plane"]  # normal / bump maps: an envelope by variants, not a bound
+VARIANT_ALLOWANCE = 0.01                # of the picture's pixels, see test_gl_within_bounds
 
 
 def make_texture(kind="noise", size=(37, 23), min_filter="linear_mipmap_linear", mag_filter="linear",
@@ -396,3 +407,55 @@ def test_planted_bugs_leave_the_bounds(name, bug):
     count = int(outside(render_scene(BUGS[bug](scene)), lo, hi, edge).sum())
     print(f"\n{name} {bug}: {count} pixels outside")
     assert count >= BUG_CASES[name, bug]
+
+
+# --------------------------------------------------------------------------- against OpenGL
+
+_GL_SCRIPT = """
+import pathlib, sys
+sys.path.insert(0, sys.argv[1])
+import numpy as np, glref, softras
+out = pathlib.Path(sys.argv[2])
+print(glref.info()["GL_RENDERER"])
+for path in sys.argv[3:]:
+    np.save(out / (pathlib.Path(path).stem + ".npy"), glref.render(softras.load_scene(path)))
+"""
+
+
+@pytest.fixture(scope="module", params=["llvmpipe", "softpipe"])
+def gl_pictures(request, tmp_path_factory):
+    """{scene name: (H, W, 4) uint8} from glref on one Mesa driver, rendered
+    in a subprocess with GALLIUM_DRIVER set (the driver is chosen when the
+    context is created)."""
+    driver = request.param
+    out = tmp_path_factory.mktemp(f"gl_{driver}")
+    names = BOUND_SCENES + VARIANT_SCENES
+    env = dict(os.environ, GALLIUM_DRIVER=driver)
+    result = subprocess.run([sys.executable, "-c", _GL_SCRIPT, str(REPO), str(out),
+                             *[str(SCENES / f"{name}.json") for name in names]],
+                            env=env, capture_output=True, text=True, timeout=600)
+    renderer = result.stdout.strip().splitlines()[0] if result.stdout.strip() else ""
+    if result.returncode != 0 or driver not in renderer:
+        message = f"no {driver} context: {renderer or result.stderr.strip()[-500:]}"
+        if os.environ.get("SOFTRAS_ALLOW_NO_GL") == "1":
+            pytest.skip(message)
+        pytest.fail(message)
+    return driver, {name: np.load(out / f"{name}.npy") for name in names}
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("name", BOUND_SCENES + VARIANT_SCENES)
+def test_gl_within_bounds(gl_pictures, name):
+    """Every pixel of llvmpipe's and softpipe's picture that is not a
+    coverage edge lies within the bounds renders +- 2/255.  Scenes with
+    normal / bump maps only have an envelope of two variants (lighting is not
+    monotone in the lambda between them): up to VARIANT_ALLOWANCE of their
+    pixels may fall outside (measured: bump_mapped_plane 43 on llvmpipe)."""
+    driver, pictures = gl_pictures
+    scene, lo, hi, edge = envelope(name)
+    bad = outside(pictures[name], lo, hi, edge)
+    print(f"\n{driver} {name}: {int(bad.sum())} pixels outside ({int(edge.sum())} edge pixels excluded)")
+    if name in VARIANT_SCENES:
+        assert bad.sum() <= VARIANT_ALLOWANCE * bad.size
+    else:
+        assert not bad.any(), f"{driver} {name}: {int(bad.sum())} pixels outside, at {np.argwhere(bad)[:5]}"
