@@ -13,6 +13,7 @@ import numpy as np
 from . import clip as clip_stage
 from . import fastpath, fragment, interpolate, lines, ops, rasterize, sampling, setup, texture, vertex
 from . import texture_beyond
+from . import texture_bounds as texbounds
 from .scene import Scene, ordered_draws
 
 PRECISIONS = ("gl", "exact")
@@ -105,20 +106,29 @@ def phong_attributes(persp, corners, t, base, world, draw):
 
 
 def mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal, precision,
-                    texture_fixed_point):
+                    texture_fixed_point, texture_bounds=None):
     """Phong shading with a normal or bump map: (F, 3) world normals perturbed
     per fragment (softras.fragment: tangent frames from Mesh.tangents,
-    the map sampled like any texture, with the uv's derivatives)."""
+    the map sampled like any texture, with the uv's derivatives).
+
+    texture_bounds "lo" / "hi": the map sampled at the lowest / highest level
+    of detail GL permits (`softras.texture_bounds.variant_derivatives`): the
+    normal goes through lighting, so this is an envelope by variants, not a
+    bound."""
     mesh, material = draw.mesh, draw.material
     gl = precision == "gl"
     tangents = vertex.world_tangents(mesh.tangents, draw.world)
     tangent = interpolate.interpolate(persp, corners(tangents)[t])
-    _, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags, centres, gl)
+    corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags, centres, gl)
+    tex = texture.prepare(scene.textures[material.normal_map if material.normal_map is not None
+                                         else material.bump_map])
+    if texture_bounds is not None:
+        candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y,
+                                                    centres, corner_uv)
+        tex, ddx, ddy = texbounds.variant_derivatives(tex, candidates, texture_bounds, precision)
     if material.normal_map is not None:
-        tex = texture.prepare(scene.textures[material.normal_map])
         mapped = fragment.normal_map_normals(texture.sample(tex, st, ddx, ddy, precision, texture_fixed_point))
     else:
-        tex = texture.prepare(scene.textures[material.bump_map])
         mapped = fragment.bump_normals(tex, st, ddx, ddy, material.bump_scale, precision, texture_fixed_point)
     return fragment.perturb_normals(normal, tangent, mapped)
 
@@ -127,7 +137,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                  pattern: str | None = None, seed: int = 0, resolve_filter: str = "box",
                  framebuffer: str | None = None, clipping: str | None = None,
                  texture_fixed_point: bool = True, fast_path: bool = True,
-                 texture_filter=None) -> np.ndarray:
+                 texture_filter=None, texture_bounds: str | None = None) -> np.ndarray:
     """Render a loaded scene; returns the picture, row 0 = top.
 
     precision : "gl" (llvmpipe's fixed point, float32 vertex math, RGBA8 and
@@ -149,6 +159,11 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     texture_filter : None, "ripmap", "ewa", "level0" or a dict {texture name:
         filter}: replaces the min filter of every (or the named) texture with
         a softras-only filter (see `softras.texture_beyond`); glref ignores it.
+    texture_bounds : None, "lo" or "hi": every texture lookup returns the
+        lower / upper bound of what a conformant GL implementation may return
+        (`softras.texture_bounds.lookup_bounds`; stages only, no texture_filter);
+        normal and bump maps are sampled at the lowest / highest permitted
+        level of detail instead (an envelope by variants, not a bound).
 
     Returns (H, W, 4) premultiplied RGBA: uint8 for an rgba8 framebuffer,
     float32 (unclamped, as GL reads back a float buffer) for rgba32f.
@@ -163,6 +178,10 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     if resolve_filter not in ops.RESOLVE_FILTERS:
         raise ValueError(f"resolve_filter must be one of {ops.RESOLVE_FILTERS}, not {resolve_filter!r}")
     texture_beyond.check_texture_filter(texture_filter, scene.textures)
+    if texture_bounds not in (None,) + texbounds.SIDES:
+        raise ValueError(f"texture_bounds must be None, 'lo' or 'hi', not {texture_bounds!r}")
+    if texture_bounds is not None and texture_filter is not None:
+        raise ValueError("texture_bounds bounds GL's filters: it cannot be combined with texture_filter")
     positions = sample_positions(samples or scene.samples, pattern, seed)
     gl_pattern = pattern is None or (isinstance(pattern, str) and pattern == "gl")
     n_samples = len(positions)
@@ -178,6 +197,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     # fused kernel (tests/test_fastpath.py).  A new option must either send
     # scenes that use it past this test or be implemented there.
     fast = (fast_path and rgba8 and gl_pattern and texture_filter is None
+            and texture_bounds is None
             and fastpath.unsupported(scene, precision=precision, samples=n_samples, clipping=clipping) is None)
     if fast:
         stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point,
@@ -188,7 +208,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     for start, stop in ([] if fast else sample_passes(n_samples)):
         part = _render_pass(scene, positions[start:stop], precision=precision, rgba8=rgba8,
                             clipping=clipping, texture_fixed_point=texture_fixed_point,
-                            texture_filter=texture_filter)
+                            texture_filter=texture_filter, texture_bounds=texture_bounds)
         if color is None:
             color = np.empty(part.shape[:2] + (n_samples, 4), part.dtype)
         color[:, :, start:stop] = part
@@ -200,7 +220,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
 
 
 def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: bool,
-                 clipping: str | None, texture_fixed_point: bool, texture_filter=None) -> np.ndarray:
+                 clipping: str | None, texture_fixed_point: bool, texture_filter=None,
+                 texture_bounds: str | None = None) -> np.ndarray:
     """Render every draw at <= 32 sample positions (S, 2) in [0, 1)^2.
 
     Returns the per-sample colour buffer (H, W, S, 4) premultiplied, GL's
@@ -268,7 +289,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
             colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
             if material.normal_map is not None or material.bump_map is not None:
                 normal = mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
-                                         precision, texture_fixed_point)
+                                         precision, texture_fixed_point, texture_bounds)
             lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
             colors = np.concatenate([lit, colors[:, 3:]], axis=1)
         else:
@@ -276,9 +297,14 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         texel = None
         if material.texture is not None:
             tex = texture.prepare(scene.textures[material.texture])
-            _, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags, centres, gl)
-            texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
-                                                  texture_filter)
+            corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags, centres, gl)
+            if texture_bounds is None:
+                texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
+                                                      texture_filter)
+            else:       # every derivative GL permits: quad differences and analytic
+                candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y,
+                                                            centres, corner_uv)
+                texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
         rgba = fragment.shade_unlit(colors, np.ones(4), texel)
         ops.apply_fragments(frags.x, frags.y, frags.mask, z, rgba, color, depth,
                             ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
