@@ -137,7 +137,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                  pattern: str | None = None, seed: int = 0, resolve_filter: str = "box",
                  framebuffer: str | None = None, clipping: str | None = None,
                  texture_fixed_point: bool = True, fast_path: bool = True,
-                 texture_filter=None, texture_bounds: str | None = None) -> np.ndarray:
+                 texture_filter=None, texture_bounds: str | None = None,
+                 tie_rule: str = "left_bottom") -> np.ndarray:
     """Render a loaded scene; returns the picture, row 0 = top.
 
     precision : "gl" (llvmpipe's fixed point, float32 vertex math, RGBA8 and
@@ -164,6 +165,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
         (`softras.texture_bounds.lookup_bounds`; stages only, no texture_filter);
         normal and bump maps are sampled at the lowest / highest permitted
         level of detail instead (an envelope by variants, not a bound).
+    tie_rule : which edges own a sample exactly on them (`softras.setup.TIE_RULES`):
+        "left_bottom" (llvmpipe's, default) or another rule GL allows (stages only).
 
     Returns (H, W, 4) premultiplied RGBA: uint8 for an rgba8 framebuffer,
     float32 (unclamped, as GL reads back a float buffer) for rgba32f.
@@ -180,6 +183,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     texture_beyond.check_texture_filter(texture_filter, scene.textures)
     if texture_bounds not in (None,) + texbounds.SIDES:
         raise ValueError(f"texture_bounds must be None, 'lo' or 'hi', not {texture_bounds!r}")
+    if tie_rule not in setup.TIE_RULES:
+        raise ValueError(f"tie_rule must be one of {', '.join(setup.TIE_RULES)}, not {tie_rule!r}")
     if texture_bounds is not None and texture_filter is not None:
         raise ValueError("texture_bounds bounds GL's filters: it cannot be combined with texture_filter")
     positions = sample_positions(samples or scene.samples, pattern, seed)
@@ -197,7 +202,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     # fused kernel (tests/test_fastpath.py).  A new option must either send
     # scenes that use it past this test or be implemented there.
     fast = (fast_path and rgba8 and gl_pattern and texture_filter is None
-            and texture_bounds is None
+            and texture_bounds is None and tie_rule == "left_bottom"
             and fastpath.unsupported(scene, precision=precision, samples=n_samples, clipping=clipping) is None)
     if fast:
         stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point,
@@ -208,7 +213,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     for start, stop in ([] if fast else sample_passes(n_samples)):
         part = _render_pass(scene, positions[start:stop], precision=precision, rgba8=rgba8,
                             clipping=clipping, texture_fixed_point=texture_fixed_point,
-                            texture_filter=texture_filter, texture_bounds=texture_bounds)
+                            texture_filter=texture_filter, texture_bounds=texture_bounds,
+                            tie_rule=tie_rule)
         if color is None:
             color = np.empty(part.shape[:2] + (n_samples, 4), part.dtype)
         color[:, :, start:stop] = part
@@ -221,7 +227,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
 
 def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: bool,
                  clipping: str | None, texture_fixed_point: bool, texture_filter=None,
-                 texture_bounds: str | None = None) -> np.ndarray:
+                 texture_bounds: str | None = None, tie_rule: str = "left_bottom") -> np.ndarray:
     """Render every draw at <= 32 sample positions (S, 2) in [0, 1)^2.
 
     Returns the per-sample colour buffer (H, W, S, 4) premultiplied, GL's
@@ -259,7 +265,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
                                             policy=policy, width=width, height=height)
         tris = setup.setup_triangles(clipped.clip, width, height, precision=precision,
                                      cull=draw.cull, offsets=offsets, unit=unit,
-                                     generated=clipped.generated)
+                                     generated=clipped.generated, tie_rule=tie_rule)
         frags = rasterize.rasterize(tris, offsets, unit)
         if len(frags) == 0:
             continue

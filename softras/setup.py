@@ -135,15 +135,24 @@ def edge_equations(xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, ...]:
     return (py - qy) * sign, (qx - px) * sign, px, py
 
 
+#: The consistent tie rules: which edges own a sample exactly on them, in GL's
+#: y-up window space. GL 4.6 section 14.6.1 asks only that a sample on an edge
+#: shared by two polygons goes to exactly one of them; each rule here does
+#: that (two triangles sharing an edge see it with opposite (A, B)).
+#: "left_bottom" is llvmpipe's (D3D's top-left rule seen with y up).
+TIE_RULES = {"left_bottom": (1, 1), "right_bottom": (-1, 1), "left_top": (1, -1), "right_top": (-1, -1)}
+
+
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str = "gl",
                     cull: str = "none", offsets: np.ndarray, unit: float,
-                    generated: np.ndarray | None = None) -> TriangleSetup:
+                    generated: np.ndarray | None = None, tie_rule: str = "left_bottom") -> TriangleSetup:
     """Set up clipped triangles for rasterization.
 
     clip : (T, 3, 4) float64 clip-space triangles (after the clip stage).
     cull : "none", "back" or "front" (front = counter-clockwise).
     offsets, unit : from `sample_offsets`.
     generated : (T, 3) bool, vertices made by the clipper (see `viewport_transform`).
+    tie_rule : one of `TIE_RULES`: the edges that own a sample exactly on them.
     """
     fused = True if generated is None else ~generated
     window, inv_w = viewport_transform(clip, width, height, precision, fused)
@@ -174,7 +183,8 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str
 
     xs, ys = raster[..., 0], raster[..., 1]
     a, b, x0, y0 = edge_equations(xs, ys)
-    inclusive = (a > 0) | ((a == 0) & (b > 0))
+    sign_a, sign_b = TIE_RULES[tie_rule]
+    inclusive = (sign_a * a > 0) | ((a == 0) & (sign_b * b > 0))
 
     bbox = np.stack([
         np.ceil((xs.min(axis=1) - offsets[:, 0].max()) / unit),

@@ -34,6 +34,10 @@ coverage              GL 4.6 section 14.6.1 samples the polygon at the
 sample positions      section 14.3.1: where the reference GL reports
                       (glGetMultisamplefv) positions other than softras's
                       GL pattern, every variant samples at the reference's.
+tie rule              section 14.6.1 asks only that a sample exactly on an
+                      edge shared by two polygons goes to exactly one: the
+                      three other consistent rules beside llvmpipe's
+                      left-bottom (softras.setup.TIE_RULES).
 depth ties            section 14.6.1 / 17.3.4: depth is interpolated and
                       rounded by the implementation: ties between surfaces
                       at equal depth may break either way (the scene with
@@ -62,9 +66,8 @@ What the envelope does not bound tightly: where two variants disagree the
 pixel may take any value between them (a coverage edge is "either colour,
 or anything in between"), not only one of them; a line's pixel count
 (section 14.5.1 rules 2 and 3) is not checked. A consistent swap of the tie
-rule (which of two polygons sharing an edge gets a sample exactly on it) is
-conformant (section 14.6.1 asks only that exactly one does), so the spec
-profile cannot fail it; the strict profile does.
+rule is conformant, so the spec profile does not fail it; a tie rule that
+leaves gaps or double hits on shared edges is not, and fails.
 """
 
 from __future__ import annotations
@@ -348,7 +351,7 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
     Returns
     -------
     Bounds
-        The envelope of the module docstring's variants (7 renders, 4
+        The envelope of the module docstring's variants (10 renders, 4
         more with textures, 9 more with lines).
     """
     render = render or _default_render
@@ -364,6 +367,8 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
         ("exact", scene, {"precision": "exact"}),
         ("depth ties flipped", _tie_flipped(scene), {"precision": "gl"}),
     ]
+    for rule in ("right_bottom", "left_top", "right_top"):
+        variants.append((f"tie rule {rule}", scene, {"precision": "gl", "tie_rule": rule}))
     for dx, dy in ((shift, 0.0), (-shift, 0.0), (0.0, shift), (0.0, -shift)):
         variants.append((f"moved ({dx:+.4f}, {dy:+.4f}) px", shifted_scene(scene, dx, dy), {"precision": "gl"}))
     if any(d.mesh.primitive == "lines" for d in scene.draws):

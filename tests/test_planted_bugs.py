@@ -83,12 +83,7 @@ def test_no_unmodified_scene_fails(rows):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("scene", [
-    pytest.param(name, marks=pytest.mark.xfail(
-        strict=True, reason="known gap in the spec bounds: vertices exactly on pixel centres, where the "
-                            "swapped tie rule gives the sample to a triangle no moved variant gives it to "
-                            "(25 px FAIL on llvmpipe and softpipe); see docs/verification.md, Planted bugs"))
-    if name == "fill_rule_grid" else name for name in SWAP.scenes])
+@pytest.mark.parametrize("scene", SWAP.scenes)
 def test_consistent_fill_rule_swap_is_not_failed_under_spec(rows, scene):
     """GL 4.6 section 14.6.1 permits either consistent tie rule: not a bug."""
     mine = [r for r in rows if r.mutation == SWAP.name and r.scene == scene and r.profile == "spec"]
