@@ -609,6 +609,7 @@ def verify(
     import softras
     from softras.imageio import ImageError, read_png
     from softras.scene import SceneError
+    from softras.verifier import scene_tolerance
 
     golden_dir = Path(golden_dir if golden_dir is not None else GOLDEN_DIR)
     scenes = _load_scenes(scene_paths)
@@ -649,6 +650,7 @@ def verify(
                      f"scene is {scene.width}x{scene.height}: run softras golden --update")
                 golden = None
         if golden is not None:
+            tolerance = scene_tolerance(path, scene)[0]
             gl = np.ascontiguousarray(_render_gl(scene), dtype=np.uint8)
             result.gl_diff_pixels = _diff_pixels(gl, golden)
             if same_gl:
@@ -657,7 +659,7 @@ def verify(
                          f"pixel{'s' if result.gl_diff_pixels != 1 else ''} differ): the scene, glref or "
                          f"the driver changed; review, then softras golden --update")
             else:
-                result.gl_comparison = softras.compare(gl, golden, **scene.tolerance)
+                result.gl_comparison = softras.compare(gl, golden, **tolerance)
                 if not result.gl_comparison.passed:
                     fail(f"glref on {_describe_gl(here)} vs golden from {_describe_gl(manifest['provenance'])}: "
                          + _tolerance_text(result.gl_comparison))
@@ -667,7 +669,7 @@ def verify(
                 fail(f"softras cannot render the scene: {_one_line(error)}")
                 soft = None
             if soft is not None:
-                result.soft = softras.compare(soft, golden, **scene.tolerance)
+                result.soft = softras.compare(soft, golden, **tolerance)
                 if not result.soft.passed:
                     fail("softras vs golden: " + _tolerance_text(result.soft))
             if keep_images:

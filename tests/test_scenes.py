@@ -9,6 +9,7 @@ from __future__ import annotations
 import pytest
 
 import softras
+from softras.verifier import scene_tolerance
 from conftest import SCENES, write_failure_images
 
 SCENE_FILES = sorted(p for p in SCENES.glob("*.json"))
@@ -24,7 +25,7 @@ def test_soft_matches_gl(path, tmp_path):
     scene = softras.load_scene(path)
     soft = softras.render(scene, precision="gl")
     gl = softras.render(scene, backend="gl")
-    result = softras.compare(soft, gl, **scene.tolerance)
+    result = softras.compare(soft, gl, **scene_tolerance(path, scene)[0])   # the one set of defaults
     if not result.passed:
         write_failure_images(tmp_path, soft=soft, gl=gl, diff=result.diff_image)
         pytest.fail(f"{path.name}: {result.summary()} (images in {tmp_path})")
