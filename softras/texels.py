@@ -35,10 +35,13 @@ identical texels.  glref needs no module of softras but `softras.scene`.
   the fast path samples them without a copy).
 
 The per-texel loops are compiled (numba): a new scene's texture costs both
-renderers its premultiplication and softras its mip chain.
+renderers its premultiplication and mip chain (glref reads level 0 of
+``Texture.levels``, which builds the whole chain).
 """
 
 from __future__ import annotations
+
+import functools
 
 import numba
 import numpy as np
@@ -317,11 +320,22 @@ def _axis(fixed: np.ndarray, size: int):
     return np.clip(i0, 0, size - 1), np.clip(i0 + 1, 0, size - 1), fixed & 255
 
 
+@functools.lru_cache(maxsize=256)
+def _blit_axes(dst_size: tuple[int, int], src_size: tuple[int, int]) -> tuple[np.ndarray, ...]:
+    """`_axis` of s, t_upper and t_lower for one level size pair: nine read-only
+    int64 arrays.  Cached: the float32 steps cost ~0.1 ms a level in numpy,
+    more than the blend itself, and a scene loaded again has the same sizes."""
+    s, t_upper, t_lower = llvmpipe_blit_coordinates(dst_size, src_size)
+    axes = (*_axis(s, src_size[0]), *_axis(t_upper, src_size[1]), *_axis(t_lower, src_size[1]))
+    for a in axes:
+        a.flags.writeable = False
+    return axes
+
+
 def _llvmpipe_reduce(level, out):
     """llvmpipe's blit of a C-contiguous (H, W, C) uint8 level into out (H', W', C)."""
     h, w = level.shape[:2]
-    s, t_upper, t_lower = llvmpipe_blit_coordinates((out.shape[1], out.shape[0]), (w, h))
-    _blit_linear(level, *_axis(s, w), *_axis(t_upper, h), *_axis(t_lower, h), out)
+    _blit_linear(level, *_blit_axes((out.shape[1], out.shape[0]), (w, h)), out)
 
 
 @numba.njit(cache=True)
