@@ -3,7 +3,9 @@
 The only code in the project that imports moderngl. It may import
 `softras.scene` and nothing else from softras (DESIGN.md section 1).
 
-    render(scene, *, samples=None) -> np.ndarray   uint8 (H, W, 4), row 0 = top
+    render(scene, *, samples=None, framebuffer=None, mipmaps="generate")
+                                                    -> np.ndarray (H, W, 4), row 0 = top
+    generate_mipmaps(level0) -> list of levels      glGenerateMipmap's levels, read back
     info() -> dict                                  GL_RENDERER, GL_VERSION, capabilities ...
     unsupported(scene, *, samples=None) -> str|None why this context cannot draw it
     GLUnavailable                                   no GL context (one-line reason)
@@ -11,6 +13,6 @@ The only code in the project that imports moderngl. It may import
 """
 
 from .context import DEVICE_ENV, GLUnavailable, info
-from .render import NotSupported, render, unsupported
+from .render import NotSupported, generate_mipmaps, render, unsupported
 
-__all__ = ["render", "unsupported", "info", "GLUnavailable", "NotSupported", "DEVICE_ENV"]
+__all__ = ["render", "generate_mipmaps", "unsupported", "info", "GLUnavailable", "NotSupported", "DEVICE_ENV"]

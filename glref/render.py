@@ -14,12 +14,14 @@ up, rasterization, depth test, blending into an RGBA8 -- or, for a scene's
 "framebuffer": "rgba32f", an RGBA32F -- renderbuffer). The
 readback is flipped so the returned image has row 0 = top of the picture.
 
-Textures: the texels and every mip level come from `softras.scene.Texture.levels`
-(premultiplied RGBA8, the mip chain computed once there) and are uploaded
-level by level, so both renderers filter identical bytes; the sampler state
-is set with glTextureParameteri.  Lighting (flat / gouraud / phong
-Blinn-Phong in world space) uses lit.vert / lit.frag with lighting.glsl, and
-lit.geom.glsl for flat shading.  A Phong material's normal or bump map is a
+Textures: level 0 comes from `softras.scene.Texture.levels` (premultiplied
+RGBA8, the bytes softras samples) and GL builds the other levels itself with
+glGenerateMipmap (GL 4.6 section 8.14.4), so GL's mip generation is part of
+what softras is compared with (softras.texels.mip_chain reproduces llvmpipe's
+byte for byte; ``mipmaps="upload"`` uploads softras's chain instead).  The
+sampler state is set with glTexParameteri on the bound texture.  Lighting
+(flat / gouraud / phong Blinn-Phong in world space) uses lit.vert / lit.frag
+with lighting.glsl, and lit.geom.glsl for flat shading.  A Phong material's normal or bump map is a
 second sampler (unit 1) with the scene model's per-vertex tangents
 (``Mesh.tangents``) as the attribute ``in_tangent``; displaced meshes arrive already displaced in ``Draw.mesh``.  llvmpipe's sampling depends on
 GALLIVM_PERF, read once per process and recorded by `glref.info()`.
@@ -33,7 +35,7 @@ import numpy as np
 
 from .context import get_context, info
 
-__all__ = ["render", "unsupported", "NotSupported"]
+__all__ = ["render", "generate_mipmaps", "unsupported", "NotSupported"]
 
 
 class NotSupported(ValueError):
@@ -182,30 +184,86 @@ def _gl_function(name: str, *argtypes):
     return fn
 
 
-def _upload_texture(ctx, texture, unit: int):
-    """A GL texture holding exactly softras's texels and sampler state.
+#: How glref fills a mipmapped texture's levels 1..n: "generate" (GL's own
+#: glGenerateMipmap from level 0, the default) or "upload" (softras's chain,
+#: `Texture.levels`, written level by level: for tests that give the levels
+#: contents of their own).
+MIPMAPS = ("generate", "upload")
 
-    Every level comes from `Texture.levels` of the scene model (premultiplied
-    RGBA8, the mip chain computed once there: the bytes softras samples) and
-    is uploaded explicitly, so both renderers filter identical texels; image row 0 (t = 0) is the first row
-    uploaded, which is GL's t = 0 too.
+
+def _check_mipmaps(mipmaps: str) -> None:
+    if mipmaps not in MIPMAPS:
+        raise ValueError(f"glref: mipmaps must be one of {MIPMAPS}, not {mipmaps!r}")
+
+
+def _mip_texture(ctx, level0: np.ndarray, n_levels: int, levels=None):
+    """A GL_RGBA8 texture of (H, W, 4) uint8 ``level0`` and levels 1..n_levels-1.
+
+    Levels 1.. come from glGenerateMipmap (moderngl's ``build_mipmaps(0,
+    n - 1)`` sets GL_TEXTURE_BASE_LEVEL 0 and GL_TEXTURE_MAX_LEVEL n - 1 and
+    calls it; it also sets the filters to linear_mipmap_linear / linear), or,
+    when ``levels`` is given (level 0 first), are overwritten with ``levels[1:]``.
+    Row 0 of an array is the first row uploaded, GL's t = 0.
+    """
+    height, width = level0.shape[:2]
+    tex = ctx.texture((width, height), 4, np.ascontiguousarray(level0, np.uint8).tobytes(), alignment=1)
+    if n_levels > 1:
+        tex.build_mipmaps(0, n_levels - 1)
+        if levels is not None:
+            for i, level in enumerate(levels[1:n_levels], start=1):
+                tex.write(np.ascontiguousarray(level, np.uint8).tobytes(), level=i, alignment=1)
+    return tex
+
+
+def generate_mipmaps(level0: np.ndarray) -> list[np.ndarray]:
+    """What this context's glGenerateMipmap makes of ``level0``: (H, W, 4)
+    uint8 RGBA8 in, every level ``max(1, floor(size / 2))`` down to 1x1 read
+    back, level 0 first, each (H_l, W_l, 4) uint8, row 0 = t 0.
+
+    The call glref's textures get their levels from (`_upload_texture`); on
+    llvmpipe `softras.texels.mip_chain` reproduces it byte for byte.
+    """
+    ctx = get_context()
+    level0 = np.ascontiguousarray(level0, np.uint8)
+    height, width = level0.shape[:2]
+    n_levels = max(width, height).bit_length()
+    tex = _mip_texture(ctx, level0, n_levels)
+    try:
+        out, w, h = [], width, height
+        for i in range(n_levels):
+            out.append(np.frombuffer(tex.read(level=i, alignment=1), np.uint8).reshape(h, w, 4).copy())
+            w, h = max(1, w // 2), max(1, h // 2)
+        err = ctx.error
+        if err != "GL_NO_ERROR":
+            raise RuntimeError(f"glref: OpenGL error {err} while generating mipmaps")
+    finally:
+        tex.release()
+    return out
+
+
+def _upload_texture(ctx, texture, unit: int, mipmaps: str = "generate"):
+    """A GL texture with softras's level 0 and the scene's sampler state.
+
+    Level 0 is ``Texture.levels[0]`` of the scene model (premultiplied RGBA8,
+    the bytes softras samples).  A mipmapped texture gets levels
+    ``max(1, floor(size / 2))`` down to 1x1 (``max(W, H).bit_length()`` in
+    all; GL_TEXTURE_MAX_LEVEL the last): with ``mipmaps="generate"`` from
+    glGenerateMipmap, with "upload" from ``Texture.levels`` (`_mip_texture`).
     """
     import ctypes
 
-    levels = texture.levels if texture.mipmapped else texture.levels[:1]
-    height, width = levels[0].shape[:2]
-    tex = ctx.texture((width, height), 4, np.ascontiguousarray(levels[0]).tobytes(), alignment=1)
-    if len(levels) > 1:
-        tex.build_mipmaps(0, len(levels) - 1)     # allocates the levels; overwritten next
-        for i, level in enumerate(levels[1:], start=1):
-            tex.write(np.ascontiguousarray(level).tobytes(), level=i, alignment=1)
+    _check_mipmaps(mipmaps)
+    level0 = texture.levels[0]
+    height, width = level0.shape[:2]
+    n_levels = max(width, height).bit_length() if texture.mipmapped else 1
+    tex = _mip_texture(ctx, level0, n_levels, texture.levels if mipmaps == "upload" else None)
     # GL 3.3 has no direct state access: bind the texture (to the unit it is
     # sampled from), set its parameters.
     tex.use(unit)
     parami = _gl_function("glTexParameteri", ctypes.c_uint, ctypes.c_uint, ctypes.c_int)
     paramf = _gl_function("glTexParameterf", ctypes.c_uint, ctypes.c_uint, ctypes.c_float)
     parami(_GL_TEXTURE_2D, _GL_TEXTURE_BASE_LEVEL, 0)
-    parami(_GL_TEXTURE_2D, _GL_TEXTURE_MAX_LEVEL, len(levels) - 1)
+    parami(_GL_TEXTURE_2D, _GL_TEXTURE_MAX_LEVEL, n_levels - 1)
     parami(_GL_TEXTURE_2D, _GL_TEXTURE_MIN_FILTER, _GL_FILTER[texture.min_filter])
     parami(_GL_TEXTURE_2D, _GL_TEXTURE_MAG_FILTER, _GL_FILTER[texture.mag_filter])
     parami(_GL_TEXTURE_2D, _GL_TEXTURE_WRAP_S, _GL_WRAP[texture.wrap_s])
@@ -257,7 +315,8 @@ def unsupported(scene, *, samples: int | None = None, capabilities: dict | None 
     return None
 
 
-def render(scene, *, samples: int | None = None, framebuffer: str | None = None) -> np.ndarray:
+def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
+           mipmaps: str = "generate") -> np.ndarray:
     """Render `scene` with OpenGL and return the picture.
 
     scene:   a `softras.scene.Scene` (a dict or a path is loaded with
@@ -267,6 +326,9 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None)
              average); None = `scene.samples`.
     framebuffer: "rgba8" (GL_RGBA8 renderbuffer) or "rgba32f" (GL_RGBA32F:
              no clamping, float32 blending); None = `scene.framebuffer`.
+    mipmaps: how mipmapped textures get levels 1..n (`MIPMAPS`): "generate"
+             = glGenerateMipmap from level 0, "upload" = softras's
+             `Texture.levels`.
 
     Draws are issued in `softras.scene.ordered_draws` order (the scene's
     "render_order"), the same list softras draws.
@@ -283,6 +345,7 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None)
     framebuffer = framebuffer or getattr(scene, "framebuffer", "rgba8")
     if framebuffer not in FRAMEBUFFERS:
         raise ValueError(f"glref: framebuffer must be one of {FRAMEBUFFERS}, not {framebuffer!r}")
+    _check_mipmaps(mipmaps)
     dtype = "f1" if framebuffer == "rgba8" else "f4"
     draws = ordered_draws(scene)
     ctx = get_context()
@@ -352,10 +415,10 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None)
                 content.append((own(ctx.buffer(np.ascontiguousarray(mesh.uvs, np.float32))),
                                 "2f", "in_uv"))
             if "HAS_TEXTURE" in defines:
-                own(_upload_texture(ctx, scene.textures[draw.material.texture], 0))
+                own(_upload_texture(ctx, scene.textures[draw.material.texture], 0, mipmaps))
                 prog["u_texture"].value = 0
             if mapped:
-                content.append(_set_normal_mapping(ctx, prog, scene, draw, own))
+                content.append(_set_normal_mapping(ctx, prog, scene, draw, own, mipmaps))
             ibo = own(ctx.buffer(indices))
             vao = own(ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=4))
 
@@ -412,13 +475,13 @@ def _set_lighting(prog, scene, draw) -> None:
         prog[f"u_{name}"].value = float(getattr(mat, name))
 
 
-def _set_normal_mapping(ctx, prog, scene, draw, own):
+def _set_normal_mapping(ctx, prog, scene, draw, own, mipmaps: str = "generate"):
     """Normal / bump map of a Phong draw: the map on texture unit 1, its
     uniforms, and the vertex buffer of the mesh's tangents (``Mesh.tangents``:
     the same values softras interpolates).  Returns the (buffer, format, name) VAO entry."""
     mesh, mat = draw.mesh, draw.material
     name = mat.normal_map if mat.normal_map is not None else mat.bump_map
-    tex = own(_upload_texture(ctx, scene.textures[name], 1))
+    tex = own(_upload_texture(ctx, scene.textures[name], 1, mipmaps))
     if mat.normal_map is not None:
         prog["u_normal_map"].value = 1
     else:

@@ -161,9 +161,10 @@ class Texture:
 
     @functools.cached_property
     def levels(self) -> tuple[np.ndarray, ...]:
-        """The texel data both renderers use: the premultiplied mip chain,
-        level 0 down to 1x1, each (H_l, W_l, 4) uint8, row 0 = v 0
-        (`softras.texels`).  Decoded and built once, on first use."""
+        """The premultiplied mip chain, level 0 down to 1x1, each (H_l, W_l, 4)
+        uint8, row 0 = v 0 (`softras.texels.mip_chain`: llvmpipe's
+        glGenerateMipmap).  softras samples it; glref uploads level 0 and
+        has GL generate the rest.  Decoded and built once, on first use."""
         chain = texels.mip_chain(texels.source_texels(self), premultiply=True)
         return tuple(_readonly(level) for level in chain)
 

@@ -1,28 +1,47 @@
 """Texel data of a scene texture: decoding, procedural textures, premultiplication
 and the mip chain -- the scene layer's half of texturing.
 
-Both renderers read the result through ``softras.scene.Texture.levels`` (computed
-once per texture, on first use), so softras samples and glref uploads identical
-bytes, and glref needs no module of softras but `softras.scene`.
+softras samples the result through ``softras.scene.Texture.levels`` (computed
+once per texture, on first use).  glref uploads level 0 of it (the same
+premultiplied bytes) and has GL build the other levels with glGenerateMipmap;
+:func:`mip_chain` reproduces what Mesa llvmpipe writes there byte for byte
+(tests/test_mipmap_gl.py), so on llvmpipe both renderers still filter
+identical texels.  glref needs no module of softras but `softras.scene`.
 
 - :func:`source_texels` reads a PNG through Pillow, or generates a procedural
   texture (checker, gradient, noise, bumps), as straight RGBA8, row 0 = the top
   of the image = v 0 (DESIGN.md section 3).
 - :func:`premultiply_rgba8` premultiplies at load (before mip generation):
   ``c' = round(c * a / 255)``.
-- :func:`mip_chain` builds the levels as glGenerateMipmap would: level sizes
-  ``max(1, floor(size / 2))`` down to 1x1 (non-power-of-two too), each texel
-  the rounded mean of a 2x2 box of the level above (2x1 or 1x1 where the level
-  above is one texel thin).  With an odd size the last row or column of the
-  level above has no box and is skipped: that is what a 2x2 box with
-  ``floor(size / 2)`` means.  The levels are views of one buffer, back to
-  back (:func:`levels_buffer`: the fast path samples them without a copy).
+- :func:`mip_chain` builds the levels: sizes ``max(1, floor(size / 2))`` down
+  to 1x1 (non-power-of-two too), each level reduced from the one above.
+  The GL specification leaves the reduction open (GL 4.6 section 8.14.4,
+  "No particular filter algorithm is required, though a box filter is
+  recommended"); two are here:
+
+  - ``method="llvmpipe"`` (the default): llvmpipe's glGenerateMipmap, a blit
+    of level i onto level i + 1 that samples level i bilinearly at each
+    destination texel's centre, in llvmpipe's 8.8 fixed point with clamp to
+    edge (:func:`llvmpipe_blit_coordinates`, with the Mesa source it follows).
+    Where a size is even the weights are exactly 1/2: the rounded mean of two
+    texels along x, then of the two rows' means along y (within 1/255 of the
+    rounded 2x2 mean); where it is odd the centre falls elsewhere between
+    texels and the weights are not halves (3 -> 1 takes the middle texel alone).
+  - ``method="box"``: the rounded mean of a 2x2 box of the level above (2x1
+    or 1x1 where the level above is one texel thin); with an odd size the
+    last row or column of the level above has no box and is skipped.
+
+  The levels are views of one buffer, back to back (:func:`levels_buffer`:
+  the fast path samples them without a copy).
 
 The per-texel loops are compiled (numba): a new scene's texture costs both
-renderers its premultiplication and mip chain.
+renderers its premultiplication and mip chain (glref reads level 0 of
+``Texture.levels``, which builds the whole chain).
 """
 
 from __future__ import annotations
+
+import functools
 
 import numba
 import numpy as np
@@ -166,18 +185,33 @@ def mip_sizes(width: int, height: int) -> list[tuple[int, int]]:
     return sizes
 
 
-def downsample(level: np.ndarray) -> np.ndarray:
-    """The next mip level: 2x2 box (2x1 / 1x2 where the level is one texel thin),
-    rounded to nearest (halves up).  (H, W, C) uint8 -> uint8."""
+#: The reductions :func:`mip_chain` builds a level from the one above with.
+MIP_METHODS = ("llvmpipe", "box")
+
+
+def downsample(level: np.ndarray, method: str = "llvmpipe") -> np.ndarray:
+    """The next mip level of a (H, W, C) uint8 level: (max(1, H // 2), max(1, W // 2), C) uint8.
+
+    method "llvmpipe": llvmpipe's glGenerateMipmap, a bilinear blit in 8.8
+    fixed point (:func:`llvmpipe_blit_coordinates`); "box": the rounded mean
+    of a 2x2 box (2x1 / 1x2 where the level is one texel thin; an odd last
+    row or column is skipped), halves up.
+    """
     h, w, channels = level.shape
     out = np.empty((max(1, h // 2), max(1, w // 2), channels), np.uint8)
-    _downsample(np.ascontiguousarray(level, np.uint8), out)
+    _REDUCE[_method(method)](np.ascontiguousarray(level, np.uint8), out)
     return out
+
+
+def _method(method: str) -> str:
+    if method not in MIP_METHODS:
+        raise ValueError(f"mip method must be one of {MIP_METHODS}, not {method!r}")
+    return method
 
 
 @numba.njit(cache=True)
 def _downsample(level, out):
-    """`downsample` of a C-contiguous (H, W, C) uint8 level into out (H // 2, W // 2, C)."""
+    """The box reduction of a C-contiguous (H, W, C) uint8 level into out (H // 2, W // 2, C)."""
     h, w, channels = level.shape
     nh, nw = out.shape[0], out.shape[1]
     fy = 2 if h > 1 else 1
@@ -193,13 +227,157 @@ def _downsample(level, out):
                 out[j, i, c] = (total + np.uint32(n // 2)) // np.uint32(n)
 
 
-def mip_chain(level0: np.ndarray, premultiply: bool = False) -> tuple[np.ndarray, ...]:
-    """All levels from level 0 (H, W, C) uint8 down to 1x1 (see :func:`downsample`),
-    level 0 premultiplied first when ``premultiply`` (C = 4, straight RGBA in).
+# --------------------------------------------------------------------------- llvmpipe's glGenerateMipmap
+#
+# Mesa (source read in a 23.0-devel snapshot, behaviour checked on 22.3.6; W x H
+# is the destination level): glGenerateMipmap -> st_generate_mipmap
+# (state_tracker/st_gen_mipmap.c; llvmpipe has no pipe->generate_mipmap) ->
+# util_gen_mipmap (auxiliary/util/u_gen_mipmap.c): for every level i + 1 a
+# pipe->blit of the whole level i onto the whole level i + 1 with
+# PIPE_TEX_FILTER_LINEAR -> lp_blit (llvmpipe/lp_surface.c) ->
+# util_blitter_blit (auxiliary/util/u_blitter.c): a draw of one rectangle over
+# the destination, the source level bound as a sampler view
+# with a linear, clamp-to-edge sampler (sampler_state_linear) and normalized
+# texture coordinates 0 and 1 at the rectangle's corners (get_texcoords), the
+# vertices at window (0, 0), (W, 0), (W, H), (0, H) (blitter_set_rectangle,
+# a triangle fan), each pixel's colour the sampled texel (TEX, no blending).
+# llvmpipe draws the fan as two triangles (lp_setup_vbuf.c: rect() falls back
+# to triangles when the colour buffer is not B8G8R8A8: no linear rasterizer
+# for RGBA8), and the arithmetic that decides the bytes is:
+#
+# - per triangle, plane equations of s and t in float32 (lp_state_setup.c,
+#   init_args and calc_coef4): ooa = 1 / (W H), ds/dx = H ooa, dt/dy = W ooa,
+#   a0 = a_v - (dadx (x_v - 1/2) + dady (y_v - 1/2)) from the triangle's first
+#   vertex v (after triangle_both's swap to counter-clockwise: (W, 0) for the
+#   upper-right triangle, (W, H) for the lower-left one), so s is the same in
+#   both triangles but t's a0 is not;
+# - per pixel (i, j): s = fma(ds/dx, i, a0_s) and t = fma(dt/dy, j, a0_t)
+#   (lp_bld_interp.c, attribs_update_simple: lp_build_fmuladd, fused on a CPU
+#   with FMA; the other term's slope is 0);
+# - sampling (gallivm/lp_bld_sample_aos.c, lp_build_sample_image_linear: the
+#   RGBA8 "AoS" path): round(s * float(256 W_src)) - 128 in 8.8 fixed point
+#   (round half to even), index = that >> 8, weight = that & 255, both
+#   indices clamped to the level (clamp to edge), the four texels blended by
+#   the byte lerps of `softras.texture.lerp8` (along x, then y);
+# - a pixel centre exactly on the diagonal belongs to the upper-right
+#   triangle (measured: 5 sizes where the two triangles' t differ there).
+#
+# Checked byte for byte against llvmpipe's glGenerateMipmap read back
+# (tests/test_mipmap_gl.py).  Without FMA (a CPU older than x86-64-v3) LLVM
+# would not fuse, and 0.1-0.2 % of a large NPOT level's texels would differ by 1.
+
+
+def _fma32(a, b, c) -> np.ndarray:
+    """float32 fused multiply-add ``a b + c`` rounded once: float32 arrays or
+    scalars (broadcast) -> float32 array.
+
+    ``a b`` of two float32 is exact in float64; the float64 sum is made
+    round-to-odd (its TwoSum error decides the last bit), and rounding that
+    to float32 is then the correctly rounded result (53 >= 24 + 2 bits;
+    Boldo and Melquiond, "When double rounding is odd", 2005).
+    """
+    p = np.asarray(a, np.float32).astype(np.float64) * np.asarray(b, np.float32).astype(np.float64)
+    c = np.asarray(c, np.float32).astype(np.float64)
+    s = p + c
+    bp = s - c
+    err = (p - bp) + (c - (s - bp))                       # p + c = s + err exactly
+    even = (np.asarray(s).view(np.int64) & 1) == 0
+    s = np.where((err != 0) & even, np.nextafter(s, np.where(err > 0, np.inf, -np.inf)), s)
+    return s.astype(np.float32)
+
+
+def llvmpipe_blit_coordinates(dst_size: tuple[int, int], src_size: tuple[int, int]):
+    """The 8.8 fixed-point source coordinates of llvmpipe's linear blit of a
+    whole (W_src, H_src) level onto a whole (W, H) one (``dst_size`` and
+    ``src_size`` as (width, height); see the comment above for the Mesa source).
+
+    Returns (s, t_upper, t_lower): int64 texel-space coordinates times 256,
+    minus 128 (half a texel): s (W,) per destination column; t (H,) per
+    destination row, in the upper-right triangle (pixel centres with
+    ``(j + 1/2) W <= (i + 1/2) H``, the diagonal included) and in the
+    lower-left one.  Index ``c >> 8``, weight of the next texel ``c & 255``.
+    """
+    f32 = np.float32
+    width, height = int(dst_size[0]), int(dst_size[1])
+    ooa = f32(1) / (f32(width) * f32(height))             # 1 / (e - f), twice the area
+    dsdx = f32(height) * ooa                              # da01 dy20_ooa - da20 dy01_ooa
+    dtdy = f32(width) * ooa
+    s0 = f32(1) - dsdx * f32(width - 0.5)                 # vertex (W, y): s = 1
+    t0_upper = f32(0) - dtdy * f32(-0.5)                  # vertex (W, 0): t = 0
+    t0_lower = f32(1) - dtdy * f32(height - 0.5)          # vertex (W, H): t = 1
+    s = _fma32(dsdx, np.arange(width, dtype=np.float32), s0)
+    rows = np.arange(height, dtype=np.float32)
+    t_upper, t_lower = _fma32(dtdy, rows, t0_upper), _fma32(dtdy, rows, t0_lower)
+
+    def fixed(coord, size):
+        return np.rint(coord * f32(size * 256)).astype(np.int64) - 128
+
+    return fixed(s, src_size[0]), fixed(t_upper, src_size[1]), fixed(t_lower, src_size[1])
+
+
+def _axis(fixed: np.ndarray, size: int):
+    """8.8 coordinates -> (first index, second index, weight of the second),
+    int64 each, the indices clamped to [0, size) (clamp to edge)."""
+    i0 = fixed >> 8
+    return np.clip(i0, 0, size - 1), np.clip(i0 + 1, 0, size - 1), fixed & 255
+
+
+@functools.lru_cache(maxsize=256)
+def _blit_axes(dst_size: tuple[int, int], src_size: tuple[int, int]) -> tuple[np.ndarray, ...]:
+    """`_axis` of s, t_upper and t_lower for one level size pair: nine read-only
+    int64 arrays.  Cached: the float32 steps cost ~0.1 ms a level in numpy,
+    more than the blend itself, and a scene loaded again has the same sizes."""
+    s, t_upper, t_lower = llvmpipe_blit_coordinates(dst_size, src_size)
+    axes = (*_axis(s, src_size[0]), *_axis(t_upper, src_size[1]), *_axis(t_lower, src_size[1]))
+    for a in axes:
+        a.flags.writeable = False
+    return axes
+
+
+def _llvmpipe_reduce(level, out):
+    """llvmpipe's blit of a C-contiguous (H, W, C) uint8 level into out (H', W', C)."""
+    h, w = level.shape[:2]
+    _blit_linear(level, *_blit_axes((out.shape[1], out.shape[0]), (w, h)), out)
+
+
+@numba.njit(cache=True)
+def _blit_linear(level, x0, x1, wx, y0u, y1u, wyu, y0l, y1l, wyl, out):
+    """Bilinear 8.8 blend of `level` into out at per-column (x0, x1, wx) and
+    per-row coordinates of the upper-right (y0u, y1u, wyu) and lower-left
+    (y0l, y1l, wyl) triangle: llvmpipe's lerps ``a + ((w (b - a) + 128) >> 8)``,
+    along x on both rows, then along y."""
+    nh, nw, channels = out.shape
+    for j in range(nh):
+        for i in range(nw):
+            if (2 * j + 1) * nw <= (2 * i + 1) * nh:      # on or above the diagonal (0, 0)-(W, H)
+                ya, yb, wy = y0u[j], y1u[j], wyu[j]
+            else:
+                ya, yb, wy = y0l[j], y1l[j], wyl[j]
+            xa, xb, w = x0[i], x1[i], wx[i]
+            for c in range(channels):
+                t00 = np.int64(level[ya, xa, c])
+                t10 = np.int64(level[ya, xb, c])
+                t01 = np.int64(level[yb, xa, c])
+                t11 = np.int64(level[yb, xb, c])
+                top = t00 + ((w * (t10 - t00) + 128) >> 8)
+                bottom = t01 + ((w * (t11 - t01) + 128) >> 8)
+                out[j, i, c] = top + ((wy * (bottom - top) + 128) >> 8)
+
+
+_REDUCE = {"llvmpipe": _llvmpipe_reduce, "box": _downsample}
+
+
+def mip_chain(level0: np.ndarray, premultiply: bool = False, method: str = "llvmpipe") -> tuple[np.ndarray, ...]:
+    """All levels from level 0 (H, W, C) uint8 down to 1x1, each reduced from
+    the one above by :func:`downsample` with ``method`` ("llvmpipe": what
+    llvmpipe's glGenerateMipmap writes, byte for byte; "box": the rounded
+    2x2 mean), level 0 premultiplied first when ``premultiply`` (C = 4,
+    straight RGBA in).
 
     The levels lie back to back in one buffer, each a view of it
     (:func:`levels_buffer`), so that a renderer can take them all at once.
     """
+    reduce = _REDUCE[_method(method)]
     level0 = np.ascontiguousarray(level0, np.uint8)
     h, w, channels = level0.shape
     sizes = mip_sizes(w, h)
@@ -213,7 +391,7 @@ def mip_chain(level0: np.ndarray, premultiply: bool = False) -> tuple[np.ndarray
     else:
         levels[0][...] = level0
     for above, level in zip(levels, levels[1:]):
-        _downsample(above, level)
+        reduce(above, level)
     return tuple(levels)
 
 

@@ -1,8 +1,9 @@
 """Texture sampling against OpenGL (glref): level choice and every filter/wrap pair.
 
-The level test gives every mip level its own solid colour (softras.texture's
-mip chain is replaced for the test; glref uploads whatever softras computed),
-so the colour of a pixel says which level the sampler chose.
+The level test gives every mip level its own solid colour (softras.texels's
+mip chain is replaced for the test, and glref uploads that chain,
+``mipmaps="upload"``, instead of generating the levels), so the colour of a
+pixel says which level the sampler chose.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import json
 import numpy as np
 import pytest
 
+import glref
 import softras
 from conftest import SCENES, write_failure_images
 from softras import texels, texture
@@ -39,9 +41,9 @@ def solid_levels(monkeypatch):
     """Mip level k of every texture is the solid colour PALETTE[k]."""
     real_chain = texels.mip_chain
 
-    def chain(level0, premultiply=False):
+    def chain(level0, premultiply=False, method="llvmpipe"):
         levels = []
-        for k, level in enumerate(real_chain(level0, premultiply)):
+        for k, level in enumerate(real_chain(level0, premultiply, method)):
             solid = np.empty_like(level)
             solid[..., :3] = PALETTE[k]
             solid[..., 3] = 255
@@ -69,7 +71,7 @@ def test_mip_level_choice_equals_gl(solid_levels, monkeypatch, tmp_path):
     decide it.
     """
     scene = softras.load_scene(GRAZING_FLOOR)
-    gl_image = softras.render(scene, backend="gl")
+    gl_image = glref.render(scene, mipmaps="upload")
     soft_image = softras.render(scene, precision="gl")
     gl, soft = level_of(gl_image), level_of(soft_image)
     covered = gl >= 0
@@ -100,7 +102,7 @@ def test_exact_level_choice_close_to_gl(solid_levels):
     """exact precision (analytic derivatives per pixel, the spec's rounding)
     differs from GL's per-quad choice only along level boundaries."""
     scene = softras.load_scene(GRAZING_FLOOR)
-    gl = level_of(softras.render(scene, backend="gl"))
+    gl = level_of(glref.render(scene, mipmaps="upload"))
     exact = level_of(softras.render(scene, precision="exact"))
     covered = gl >= 0
     assert ((exact == gl) & covered).sum() / covered.sum() > 0.9
@@ -151,10 +153,12 @@ def test_filter_and_wrap_match_gl(min_filter, wrap, tmp_path):
                     f"by more than 1/255 (max {diff.max()}; images in {tmp_path})")
 
 
+# The mip levels are uploaded, not generated: with no_aos_sampling llvmpipe's
+# glGenerateMipmap samples in float too, which softras's chain does not follow.
 _GL_IN_SUBPROCESS = """
-import sys, numpy as np, glref, softras
+import sys, numpy as np, glref
 assert glref.info()["env"]["GALLIVM_PERF"] == "no_aos_sampling"
-np.save(sys.argv[2], softras.render(sys.argv[1], backend="gl"))
+np.save(sys.argv[2], glref.render(sys.argv[1], mipmaps="upload"))
 """
 
 
@@ -164,7 +168,8 @@ def test_float_weights_match_llvmpipe_without_aos_sampling(name, tmp_path):
     """GALLIVM_PERF=no_aos_sampling makes llvmpipe filter in float; softras's
     ``texture_fixed_point=False`` reproduces that, while its default (8.8 fixed
     point, llvmpipe's default) does not.  The variable is read once per
-    process, so that GL runs in a child process."""
+    process, so that GL runs in a child process, with softras's mip levels
+    uploaded (no_aos_sampling changes glGenerateMipmap's blit too)."""
     import os
     import subprocess
     import sys

@@ -32,22 +32,83 @@ def test_mip_chain_shapes_match_sizes():
     assert [lvl.shape[1::-1] for lvl in chain] == texels.mip_sizes(5, 3)
 
 
-def test_downsample_is_a_rounded_2x2_box():
+def test_box_downsample_is_a_rounded_2x2_box():
     level = np.array([[0, 255], [255, 255]], np.uint8)[..., None]
-    assert texels.downsample(level)[0, 0, 0] == (0 + 3 * 255 + 2) // 4 == 191
+    assert texels.downsample(level, "box")[0, 0, 0] == (0 + 3 * 255 + 2) // 4 == 191
     # 3x3: floor(3/2) = 1, the box is the top-left 2x2; the last row and column are skipped.
     level = np.array([[4, 8, 99], [12, 16, 99], [99, 99, 99]], np.uint8)[..., None]
-    assert texels.downsample(level).shape == (1, 1, 1)
-    assert texels.downsample(level)[0, 0, 0] == 10
+    assert texels.downsample(level, "box").shape == (1, 1, 1)
+    assert texels.downsample(level, "box")[0, 0, 0] == 10
     # One texel thin: a 2x1 box.
     level = np.array([[10, 21, 30, 40]], np.uint8)[..., None]
-    np.testing.assert_array_equal(texels.downsample(level)[..., 0], [[16, 35]])
+    np.testing.assert_array_equal(texels.downsample(level, "box")[..., 0], [[16, 35]])
+
+
+def test_llvmpipe_downsample_by_hand():
+    """llvmpipe's glGenerateMipmap samples level i bilinearly (8.8 fixed
+    point, clamp to edge) at each level-(i + 1) texel centre."""
+    # 2x2 -> 1x1: weights 1/2, a rounded mean along x per row, then along y:
+    # rows 0 + ((128 * 255 + 128) >> 8) = 128 and 255; 128 + ((128 * 127 + 128) >> 8) = 192
+    # (the box rounds (0 + 3 * 255 + 2) // 4 = 191).
+    level = np.array([[0, 255], [255, 255]], np.uint8)[..., None]
+    assert texels.downsample(level)[0, 0, 0] == 192
+    # 3x3 -> 1x1: the centre (1.5, 1.5) is texel (1, 1)'s centre: that texel alone.
+    level = np.array([[4, 8, 99], [12, 16, 99], [99, 99, 99]], np.uint8)[..., None]
+    assert texels.downsample(level)[0, 0, 0] == 16
+    # 5x1 -> 2x1: centres at u = 1.25 and 3.75 texels: 8.8 coordinates
+    # 1.25 * 256 - 128 = 192 (texels 0, 1, weight 192) and 832 (texels 3, 4, weight 64).
+    level = np.array([[10, 50, 99, 200, 100]], np.uint8)[..., None]
+    assert texels.llvmpipe_blit_coordinates((2, 1), (5, 1))[0].tolist() == [192, 832]
+    np.testing.assert_array_equal(texels.downsample(level)[..., 0],
+                                  [[10 + ((192 * 40 + 128) >> 8), 200 + ((64 * -100 + 128) >> 8)]])
+    # One texel wide: the other axis's coordinate is the texel's centre, weight 0.
+    column = np.array([[7], [9], [11], [13]], np.uint8)[..., None]
+    np.testing.assert_array_equal(texels.downsample(column)[..., 0, 0], [8, 12])
+
+
+def test_llvmpipe_coordinates_of_even_sizes_are_exact_halves():
+    """Halving an even size, every texel centre lands halfway between two
+    texels (8.8 coordinate 512 i + 128: texel 2 i, weight 128), whatever the
+    float32 rounding of the plane equations (every size up to 2 x 2048)."""
+    for n in range(1, 2049):
+        s, t_upper, t_lower = texels.llvmpipe_blit_coordinates((n, 2049 - n), (2 * n, 2 * (2049 - n)))
+        np.testing.assert_array_equal(s, 512 * np.arange(n) + 128)
+        np.testing.assert_array_equal(t_upper, 512 * np.arange(2049 - n) + 128)
+        np.testing.assert_array_equal(t_lower, t_upper)
+
+
+def test_fma32_is_rounded_once():
+    """`texels._fma32` against the exact product and sum rounded to float32
+    (ties to even) by hand with fractions, on random and tie-making values."""
+    from fractions import Fraction
+
+    def round32(q: Fraction) -> Fraction:
+        f = np.float32(float(q))
+        candidates = [np.nextafter(f, np.float32(-np.inf)), f, np.nextafter(f, np.float32(np.inf))]
+        return min((abs(Fraction(float(c)) - q), int(np.float32(c).view(np.uint32) & 1), Fraction(float(c)))
+                   for c in candidates)[2]
+
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal(3000).astype(np.float32)
+    b = rng.integers(0, 4096, 3000).astype(np.float32)
+    c = (rng.standard_normal(3000) * np.where(np.arange(3000) < 1000, 1e-9, 1e-2)).astype(np.float32)
+    # a b = 1 + 2^-11 + 2^-24, halfway between two float32, plus a tiny c: the
+    # float64 sum is that tie (c is below its ulp), which float32 would round
+    # down to even; rounded once, a b + c rounds up.
+    a[:10], b[:10] = np.float32(1 + 2 ** -12), np.float32(1 + 2 ** -12)
+    c[:5], c[5:10] = np.float32(2 ** -70), np.float32(-2 ** -70)
+    got = texels._fma32(a, b, c)
+    assert got[0] == np.float32(1 + 2 ** -11 + 2 ** -23) and got[5] == np.float32(1 + 2 ** -11)
+    for x, y, z, g in zip(a, b, c, got):
+        want = round32(Fraction(float(x)) * Fraction(float(y)) + Fraction(float(z)))
+        assert Fraction(float(g)) == want, (x, y, z)
 
 
 def test_compiled_texel_loops_equal_the_array_formulas():
-    """The compiled premultiply, box filter and checker loops against their
-    definitions written as numpy array expressions: every (c, a) byte pair,
-    random levels of odd, thin and 1x1 sizes, non-square checkers."""
+    """The compiled premultiply, box and llvmpipe reductions and checker loops
+    against their definitions written as numpy array expressions: every
+    (c, a) byte pair, random levels of odd, thin and 1x1 sizes (and 158x475,
+    which has a texel centre on the llvmpipe blit's diagonal), non-square checkers."""
     c, a = np.meshgrid(np.arange(256), np.arange(256))
     straight = np.stack([c, 255 - c, c // 2, a], axis=-1).astype(np.uint8)              # (256, 256, 4)
     expected = straight.astype(np.int32)
@@ -60,12 +121,28 @@ def test_compiled_texel_loops_equal_the_array_formulas():
         x = level.astype(np.int32)[:nh * fy, :nw * fx]
         return (x.reshape(nh, fy, nw, fx, -1).sum(axis=(1, 3)) + fy * fx // 2) // (fy * fx)
 
+    def llvmpipe(level):
+        h, w = level.shape[:2]
+        nh, nw = max(1, h // 2), max(1, w // 2)
+        s, t_upper, t_lower = texels.llvmpipe_blit_coordinates((nw, nh), (w, h))
+        i, j = np.meshgrid(np.arange(nw), np.arange(nh))
+        t = np.where((2 * j + 1) * nw <= (2 * i + 1) * nh, t_upper[:, None], t_lower[:, None])
+        s = np.broadcast_to(s[None, :], t.shape)
+        x0, x1 = np.clip(s >> 8, 0, w - 1), np.clip((s >> 8) + 1, 0, w - 1)
+        y0, y1 = np.clip(t >> 8, 0, h - 1), np.clip((t >> 8) + 1, 0, h - 1)
+        a, b = (s & 255)[..., None], (t & 255)[..., None]
+        x = level.astype(np.int64)
+        top = texture.lerp8(a, x[y0, x0], x[y0, x1])
+        return texture.lerp8(b, top, texture.lerp8(a, x[y1, x0], x[y1, x1]))
+
     rng = np.random.default_rng(5)
-    for shape in [(1, 1, 4), (1, 9, 4), (7, 1, 4), (3, 5, 4), (33, 18, 4), (64, 64, 4), (6, 4, 1)]:
+    for shape in [(1, 1, 4), (1, 9, 4), (7, 1, 4), (3, 5, 4), (33, 18, 4), (64, 64, 4), (6, 4, 1),
+                  (475, 158, 4)]:
         level = rng.integers(0, 256, size=shape, dtype=np.uint8)
-        got = texels.downsample(level)
-        assert got.dtype == np.uint8
-        np.testing.assert_array_equal(got, box(level))
+        for method, formula in (("box", box), ("llvmpipe", llvmpipe)):
+            got = texels.downsample(level, method)
+            assert got.dtype == np.uint8
+            np.testing.assert_array_equal(got, formula(level))
     for width, height, squares in [(4, 4, 2), (7, 5, 3), (100, 30, 7), (1, 1, 1), (64, 96, 8)]:
         colors = [0.2, 0.4, 0.6, 1.0], [0.9, 0.1, 0.5, 0.5]
         tex = texels.procedural_texels("checker", (width, height),
