@@ -89,10 +89,11 @@ The room GL allows, and the figure used for each
    whole pixel including the framebuffer rounding -- the verifier's own
    tolerance (t = 2/255) plus this 1.5/255 stays below it.
 8. **Texel data**: ``levels_lo`` / ``levels_hi`` (per level, per texel
-   bounds) let a caller pass the envelope of mip chains built in different
-   ways (GL leaves the reduction filter of glGenerateMipmap open); minima
-   read ``levels_lo``, maxima ``levels_hi`` (filters have non-negative
-   weights, so they are monotone in each texel).
+   bounds) are the envelope of mip chains built in different ways (GL
+   leaves the reduction filter of glGenerateMipmap open: :func:`generated_levels`,
+   which :func:`render_bound` uses); minima read ``levels_lo``, maxima
+   ``levels_hi`` (filters have non-negative weights, so they are monotone
+   in each texel).
 
 Anisotropic textures (max_anisotropy > 1; GL 4.6 section 8.14.1 / the
 EXT_texture_filter_anisotropic text: up to N probes along the major axis at
@@ -134,7 +135,7 @@ from .texture import MipTexture
 __all__ = [
     "LodPrecision", "LookupPrecision", "DerivativeCandidates", "LOG2_PIECEWISE_LINEAR_ERROR",
     "float_error", "fragment_derivatives", "single_derivatives", "lambda_range", "level_extremes",
-    "lookup_bounds", "variant_derivatives", "render_bound", "SIDES",
+    "lookup_bounds", "variant_derivatives", "generated_levels", "render_bound", "SIDES",
 ]
 
 SIDES = ("lo", "hi")
@@ -618,11 +619,48 @@ def variant_derivatives(tex: MipTexture, candidates: DerivativeCandidates, side:
     return tex, ddx, np.zeros_like(ddx)
 
 
+_generated: dict[int, tuple] = {}
+
+
+def generated_levels(tex: MipTexture) -> tuple[tuple, tuple]:
+    """Per-texel bounds of the mip chain a GL generates from ``tex``'s level 0.
+
+    GL 4.6 section 8.14.4: "No particular filter algorithm is required,
+    though a box filter is recommended." The bound: level k lies between the
+    rounded 2x2 box chain and llvmpipe's linear-blit chain
+    (`softras.texels.mip_chain`, both reduced from level 0), widened by k/255:
+    one rounding step per reduction (softpipe's float-weighted blit stays
+    within 1/255 of llvmpipe's per step, measured in docs/textures_and_lighting.md).
+    Returns (levels_lo, levels_hi): tuples of (H_l, W_l, 4) float64 on the
+    0..255 scale, level 0 exact. Cached per MipTexture.
+    """
+    from .texels import mip_chain
+
+    cached = _generated.get(id(tex))
+    if cached is not None and cached[0] is tex:
+        return cached[1]
+    levels = tex.levels
+    box = mip_chain(levels[0], method="box")
+    lows, highs = [], []
+    for k, (blit, boxed) in enumerate(zip(levels, box)):
+        blit, boxed = blit.astype(np.float64), boxed.astype(np.float64)
+        lows.append(np.clip(np.minimum(blit, boxed) - k, 0.0, 255.0))
+        highs.append(np.clip(np.maximum(blit, boxed) + k, 0.0, 255.0))
+    result = (tuple(lows), tuple(highs))
+    _generated[id(tex)] = (tex, result)
+    return result
+
+
 def render_bound(tex: MipTexture, st: np.ndarray, candidates: DerivativeCandidates, side: str,
                  **precision) -> np.ndarray:
     """The pipeline's texel for ``render_scene(texture_bounds=side)``: the
-    lower ("lo") or upper ("hi") bound of :func:`lookup_bounds`, (F, 4)."""
+    lower ("lo") or upper ("hi") bound of :func:`lookup_bounds`, (F, 4), with
+    a mipmapped texture's levels bounded as GL may generate them
+    (:func:`generated_levels`)."""
     if side not in SIDES:
         raise ValueError(f"texture_bounds must be one of {SIDES}, not {side!r}")
+    if len(tex.used_levels) > 1 and "levels_lo" not in precision:
+        levels_lo, levels_hi = generated_levels(tex)
+        precision = precision | {"levels_lo": levels_lo, "levels_hi": levels_hi}
     lo, hi = lookup_bounds(tex, st, candidates, **precision)
     return lo if side == "lo" else hi
