@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+import glref
 from softras import golden
 from softras.cli import main
 from softras.imageio import read_png
@@ -138,8 +139,10 @@ def test_update_then_verify_passes(scenes, tmp_path):
     assert sorted(p.name for p in golden_dir.iterdir()) == ["manifest.json", "quads.png", "triangle.png"]
 
     manifest = json.loads((golden_dir / "manifest.json").read_text())
-    for key in ("GL_RENDERER", "GL_VERSION", "GL_VENDOR", "mesa", "llvm", "cpu", "moderngl", "python", "date"):
+    for key in ("GL_RENDERER", "GL_VERSION", "GL_VENDOR", "mesa", "llvm", "cpu", "moderngl", "python", "date",
+                "capabilities"):
         assert key in manifest["provenance"]
+    assert manifest["provenance"]["capabilities"]["subpixel_bits"] == glref.info()["subpixel_bits"]
     entry = manifest["images"]["triangle.png"]
     assert (entry["scene"], entry["width"], entry["height"]) == ("triangle.json", 16, 12)
     assert entry["sha256"] == golden.pixel_hash(read_png(golden_dir / "triangle.png"))
