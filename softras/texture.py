@@ -9,7 +9,8 @@ Texel data
 ----------
 The premultiplied mip chain of a scene texture is scene data
 (`softras.texels`, read through ``softras.scene.Texture.levels``; glref uploads
-exactly those bytes).  :func:`prepare` pairs it with the sampler state in a
+level 0 and GL generates the rest, which `softras.texels.mip_chain` reproduces
+for llvmpipe byte for byte).  :func:`prepare` pairs it with the sampler state in a
 :class:`MipTexture`.
 
 Sampling (:func:`sample`)
@@ -80,7 +81,7 @@ class MipTexture:
 
     @property
     def used_levels(self) -> tuple:
-        """The levels a sampler can reach (what glref uploads)."""
+        """The levels a sampler can reach (those GL builds for glref)."""
         return self.levels if self.mipmapped else self.levels[:1]
 
     @property
