@@ -489,27 +489,25 @@ def judge_spec(scene, image: np.ndarray, reference: np.ndarray, tolerance: dict,
     return verdict, reasons, figures, images
 
 
-def _where_outside(image: np.ndarray, out_image: np.ndarray, out_reference: np.ndarray) -> np.ndarray:
-    """Pixels outside the bounds: red in the image, magenta in the reference, over the image dimmed."""
-    picture = np.rint(np.clip(_as_unit(image), 0, 1) * 255)
-    grey = picture[..., :3].mean(axis=-1)
+def _marked(picture: np.ndarray, *layers: tuple[np.ndarray, tuple[int, int, int]]) -> np.ndarray:
+    """The picture dimmed to grey, with each (mask, RGB) layer painted over it in order (uint8 (H, W, 4))."""
+    grey = np.rint(np.clip(_as_unit(picture), 0, 1) * 255)[..., :3].mean(axis=-1)
     out = np.empty(picture.shape[:2] + (4,), dtype=np.uint8)
     out[..., :3] = np.rint(30 + 0.3 * grey).astype(np.uint8)[..., None]
-    out[out_reference, :3] = (255, 0, 255)
-    out[out_image, :3] = (255, 30, 30)
+    for mask, colour in layers:
+        out[mask, :3] = colour
     out[..., 3] = 255
     return out
+
+
+def _where_outside(image: np.ndarray, out_image: np.ndarray, out_reference: np.ndarray) -> np.ndarray:
+    """Pixels outside the bounds: red in the image, magenta in the reference, over the image dimmed."""
+    return _marked(image, (out_reference, (255, 0, 255)), (out_image, (255, 30, 30)))
 
 
 def _where_image(soft: np.ndarray, outside: np.ndarray, inside: np.ndarray) -> np.ndarray:
     """Differences beyond the tolerance: red outside the mask, cyan inside, over soft dimmed."""
-    grey = soft[..., :3].astype(np.float64).mean(axis=-1)
-    out = np.empty(soft.shape[:2] + (4,), dtype=np.uint8)
-    out[..., :3] = np.rint(30 + 0.3 * grey).astype(np.uint8)[..., None]
-    out[inside, :3] = (0, 220, 255)
-    out[outside, :3] = (255, 30, 30)
-    out[..., 3] = 255
-    return out
+    return _marked(soft, (inside, (0, 220, 255)), (outside, (255, 30, 30)))
 
 
 def _tolerance_text(tolerance: dict) -> str:
