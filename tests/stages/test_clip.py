@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from softras.clip import clip_triangles
+from softras import rasterize, setup
+from softras.clip import FRUSTUM_PLANES, clip_polygon, clip_triangles, plane_distances, triangle_list_gl
 
 
 def _tri(*points):
@@ -66,3 +67,178 @@ def test_all_six_planes_clip_in_llvmpipe_policy_but_not_guard_band():
     assert len(clip_triangles(clip, np.array([[0, 1, 2]]), policy="llvmpipe")) > 1
     out = clip_triangles(clip, np.array([[0, 1, 2]]), policy="guard_band", width=64, height=64)
     assert len(out) == 1 and not out.generated.any()
+
+
+# ----------------------------------------------------------------------------- the compiled clipper
+
+
+def _reference_clip(clip, indices):
+    """`clip_polygon` (the readable loop) per triangle, as the llvmpipe policy
+    uses it: each triangle with a vertex outside a plane (float32 distance
+    < 0) is clipped against those planes and fanned (v[k-1], v[k], v[0]);
+    triangles outside one plane or with a non-finite vertex are dropped, the
+    others passed through."""
+    outside = plane_distances(clip, FRUSTUM_PLANES, "gl") < 0
+    out_clip, out_weights, out_source = [], [], []
+    for t, tri in enumerate(indices):
+        if outside[tri].all(axis=0).any() or not np.isfinite(clip[tri]).all():
+            continue
+        mask = outside[tri].any(axis=0)
+        if not mask.any():                                        # passed through as it is
+            out_clip.append(clip[tri])
+            out_weights.append(np.eye(3))
+            out_source.append(t)
+            continue
+        points, weights = clip_polygon(clip[tri], np.eye(3), FRUSTUM_PLANES[mask], "gl")
+        for k in range(2, len(points)):
+            out_clip.append(points[[k - 1, k, 0]])
+            out_weights.append(weights[[k - 1, k, 0]])
+            out_source.append(t)
+    return np.array(out_clip).reshape(-1, 3, 4), np.array(out_weights).reshape(-1, 3, 3), np.array(out_source, int)
+
+
+def _crossing_triangles(rng, n):
+    """(3n, 4) clip-space vertices (float32 values) and (n, 3) indices: triangles
+    through every plane, some vertices exactly on a plane, some 1e7 outside,
+    w from -1 to 3, some edges with opposite distances d, -d to a plane."""
+    w = rng.uniform(-1, 3, size=(n, 3, 1))
+    xyz = rng.uniform(-2.5, 2.5, size=(n, 3, 3)) * np.abs(w)
+    on_plane = rng.random((n, 3)) < 0.15                          # x, y or z = +-w exactly
+    axis = rng.integers(3, size=(n, 3))
+    xyz[on_plane, axis[on_plane]] = (rng.choice([-1, 1], size=(n, 3)) * w[..., 0])[on_plane]
+    huge = rng.random((n, 3)) < 0.1
+    xyz[huge] *= 10.0 ** rng.uniform(5, 7, size=(int(huge.sum()), 1))
+    clip = np.concatenate([xyz, w], axis=2).astype(np.float32).astype(np.float64)
+    # A quarter: vertex 1 the mirror image of vertex 0 in a plane (distances
+    # d and -d exactly, on a 1/1024 grid), so the clipper's choice of start
+    # vertex on a tie decides the new vertex's bits.
+    mirror = np.nonzero(rng.random(n) < 0.25)[0]
+    axis, sign = rng.integers(3, size=len(mirror)), rng.choice([-1.0, 1.0], size=len(mirror))
+    grid = np.round(clip[mirror, 0] * 1024) / 1024
+    grid[:, 3] = np.abs(grid[:, 3]) + 0.25
+    clip[mirror, 0] = grid
+    clip[mirror, 1, 3] = grid[:, 3]
+    clip[mirror, 1, axis] = -grid[np.arange(len(mirror)), axis] - 2 * sign * grid[:, 3]
+    return clip.reshape(-1, 4), np.arange(3 * n).reshape(n, 3)
+
+
+def test_compiled_clipper_equals_clip_polygon():
+    """gl precision, llvmpipe policy: `clip_triangles` (the compiled kernel
+    `_clip_gl_kernel`) and `triangle_list_gl` (the fast path's) give the
+    triangles, weights and order of `clip_polygon` bit for bit, on 2,000
+    triangles through all six planes (vertices on planes, 1e7 outside, w < 0,
+    edges whose ends lie at distances d and -d from a plane)."""
+    rng = np.random.default_rng(20261124)
+    clip, indices = _crossing_triangles(rng, 2000)
+    ref_clip, ref_weights, ref_source = _reference_clip(clip, indices)
+    outside = plane_distances(clip, FRUSTUM_PLANES, "gl") < 0
+    crossing = outside[indices].any(axis=(1, 2)) & ~outside[indices].all(axis=1).any(axis=1)
+    assert crossing.sum() > 1200 and len(ref_source) > 2000          # most triangles are clipped
+    assert (np.abs(clip) > 1e5).sum() > 200
+    d = plane_distances(clip, FRUSTUM_PLANES, "gl")
+    opposite = (d[indices[:, 0]] == -d[indices[:, 1]]) & (d[indices[:, 0]] != 0)
+    assert opposite.any(axis=1).sum() > 400                          # ties for the clipper's start vertex
+    out = clip_triangles(clip, indices, precision="gl", policy="llvmpipe")
+    np.testing.assert_array_equal(out.source, ref_source)
+    np.testing.assert_array_equal(out.clip, ref_clip)
+    np.testing.assert_array_equal(out.weights, ref_weights)
+    source, slot, fan_clip, fan_weights = triangle_list_gl(clip, indices)
+    np.testing.assert_array_equal(source, ref_source)
+    passed = slot < 0
+    np.testing.assert_array_equal(clip[indices[source[passed]]], ref_clip[passed])
+    np.testing.assert_array_equal(fan_clip[slot[~passed]], ref_clip[~passed])
+    np.testing.assert_array_equal(fan_weights[slot[~passed]], ref_weights[~passed])
+    assert (ref_weights[passed] == np.eye(3)).all()
+
+
+# ----------------------------------------------------------------------------- new vertices' viewport
+
+
+NEAR, FAR = 0.5, 4.0
+# clip = P (x, y, z, 1) = (x, y, A z + B, -z): position (x_c, y_c, -w_c) has clip x_c, y_c, w_c.
+PERSPECTIVE = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, -(FAR + NEAR) / (FAR - NEAR), -2 * FAR * NEAR / (FAR - NEAR),
+               0, 0, -1, 0]
+IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+
+
+def _pass_scene(positions, width, height):
+    """Triangles (n, 3, 3) as nodes, triangle k adding 2^(k mod 8)/255 to channel k // 8."""
+    nodes = [{"name": f"t{k}", "mesh": {"positions": tri.tolist(), "indices": [[0, 1, 2]]},
+              "material": {"color": [float(c == k // 8) * (1 << (k % 8)) / 255 for c in range(3)] + [1.0]},
+              "blend": "add", "depth_test": False} for k, tri in enumerate(positions)]
+    return {"softras_scene": 1, "width": width, "height": height, "background": [0, 0, 0, 1],
+            "camera": {"projection_matrix": PERSPECTIVE, "view_matrix": IDENTITY}, "nodes": nodes}
+
+
+def _stage_fragments(clip, width, height, fused_new_vertices):
+    """(triangle, x, GL row) of the pixels the triangles (n, 3, 4) cover through
+    the stages, new vertices through the unfused viewport transform (as
+    softras does) or the fused one (as llvmpipe's vertex code does for input
+    vertices)."""
+    n = len(clip)
+    offsets, unit = setup.sample_offsets(np.array([[0.5, 0.5]]), "gl")
+    clipped = clip_triangles(clip.reshape(-1, 4), np.arange(3 * n).reshape(n, 3), precision="gl")
+    tris = setup.setup_triangles(clipped.clip, width, height, offsets=offsets, unit=unit,
+                                 generated=None if fused_new_vertices else clipped.generated)
+    frags = rasterize.rasterize(tris, offsets, unit)
+    return clipped.source[tris.triangle[frags.tri]], frags.x, frags.y
+
+
+def _signatures(fragments, n, width):
+    """(n, 3) per triangle: covered pixels, sum and sum of squares of their
+    index y * width + x (equal for two coverages only if they are equal, here)."""
+    triangle, x, y = fragments
+    key = (y * width + x).astype(float)
+    return np.stack([np.bincount(triangle, weights, n) for weights in (None, key, key * key)], axis=1)
+
+
+def _masks(fragments, n, width, height):
+    """(n, H, W) bool, row 0 = top."""
+    triangle, x, y = fragments
+    masks = np.zeros((n, height, width), bool)
+    masks[triangle, height - 1 - y, x] = True
+    return masks
+
+
+@pytest.mark.gl
+def test_new_vertices_use_the_unfused_viewport_transform_like_llvmpipe():
+    """Vertices made by the clipper go through Mesa's C viewport transform,
+    product and sum rounded separately, not the fused multiply-add of
+    llvmpipe's vertex code (README, `setup.viewport_transform`'s ``fused``).
+    Among 20,000 triangles through the near and side planes of a 999 x 601
+    viewport (W/2 and H/2 not powers of two, so the product rounds), the
+    first 12 whose coverage the two forms change (of 50): GL draws every one
+    as the unfused form does, the fused form differs from GL on each, and
+    the fast path and render_scene(fast_path=False) draw them as GL."""
+    import softras
+    from softras import vertex
+    from softras.pipeline import render_scene
+
+    width, height, n = 999, 601, 20000
+    rng = np.random.default_rng(20261125)
+    w = rng.uniform(0.1, 3.0, size=(n, 3, 1))                      # w < NEAR: through the near plane
+    xy = rng.uniform(-1.3, 1.3, size=(n, 3, 2)) * w
+    positions = np.concatenate([xy, -w], axis=2)
+    mvp = np.array(PERSPECTIVE, float).reshape(4, 4)
+    clip = vertex.to_clip(positions.reshape(-1, 3), mvp, "gl").reshape(n, 3, 4)
+    # Candidates: a new vertex whose snapped position depends on the form.
+    clipped = clip_triangles(clip.reshape(-1, 4), np.arange(3 * n).reshape(n, 3), precision="gl")
+    snapped = [setup.snap(setup.viewport_transform(clipped.clip, width, height, "gl", fused)[0][..., :2])
+               for fused in (True, False)]
+    moved = ((snapped[0] != snapped[1]).any(axis=2) & clipped.generated).any(axis=1)
+    candidates = np.unique(clipped.source[moved])
+    unfused, fused = (_signatures(_stage_fragments(clip[candidates], width, height, f), len(candidates), width)
+                      for f in (False, True))
+    differ = candidates[(unfused != fused).any(axis=1)]
+    assert len(differ) >= 12, (f"{len(differ)} of the {len(candidates)} triangles with a new vertex whose snapped "
+                               f"position depends on the form change coverage: does setup_triangles use `generated`?")
+    chosen = differ[:12]
+    scene = softras.load_scene(_pass_scene(positions[chosen], width, height))
+    gl = softras.render(scene, backend="gl")
+    gl_masks = np.stack([(gl[..., k // 8] >> (k % 8)) & 1 for k in range(12)]).astype(bool)
+    unfused, fused = (_masks(_stage_fragments(clip[chosen], width, height, f), 12, width, height)
+                      for f in (False, True))
+    assert (unfused == gl_masks).all(axis=(1, 2)).all(), chosen[(unfused != gl_masks).any(axis=(1, 2))]
+    assert (fused != gl_masks).any(axis=(1, 2)).all(), chosen[(fused == gl_masks).all(axis=(1, 2))]
+    for path, image in (("fast path", softras.render(scene)), ("stages", render_scene(scene, fast_path=False))):
+        assert (image == gl).all(), f"{path}: {int((image != gl).any(axis=2).sum())} pixels differ from GL"

@@ -3,6 +3,7 @@
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from softras import rasterize, setup
 
@@ -47,31 +48,66 @@ def test_large_triangle_uses_block_early_in():
     assert cover.all()
 
 
-@settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), precision=st.sampled_from(["gl", "exact"]),
-       msaa=st.booleans())
-def test_tessellated_mesh_covers_every_sample_exactly_once(seed, precision, msaa):
+GRID_N = 5          # quads per side of the watertightness mesh
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(jitter=arrays(np.float64, (GRID_N - 1, GRID_N - 1, 2),
+                     elements=st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False)),
+       snap=st.booleans(),
+       diagonals=arrays(np.bool_, (GRID_N, GRID_N)), clockwise=arrays(np.bool_, (GRID_N, GRID_N)),
+       precision=st.sampled_from(["gl", "exact"]), msaa=st.booleans())
+def test_tessellated_mesh_covers_every_sample_exactly_once(jitter, snap, diagonals, clockwise, precision, msaa):
     """Watertightness: a jittered grid mesh over the whole viewport covers each
-    sample exactly once, whatever the vertex positions and windings."""
-    rng = np.random.default_rng(seed)
-    width, height, n = 24, 20, 5
+    sample exactly once, whatever the vertex positions, diagonals and windings.
+
+    The geometry itself is drawn by hypothesis (the inner vertices' offsets,
+    each quad's diagonal and first triangle's winding), derandomized and with
+    no example database: a failure is the same on every run and shrinks to a
+    small jitter."""
+    width, height, n = 24, 20, GRID_N
     xs = np.linspace(-2, width + 2, n + 1)
     ys = np.linspace(-2, height + 2, n + 1)
     grid = np.stack(np.meshgrid(xs, ys), axis=-1)
     # Jitter <= 1 px per axis: a vertex moves <= sqrt(2) px, so no quad (5.6 x 4.8 px)
-    # can fold over its diagonal (3.6 px away); +-1.5 folded one quad for seed 495.
-    grid[1:-1, 1:-1] += rng.uniform(-1.0, 1.0, size=(n - 1, n - 1, 2))
-    if rng.integers(2):   # snap some vertices onto pixel centres and corners
+    # can fold over its diagonal (3.6 px away); +-1.5 folded a quad (seed 495 of the seeded version).
+    grid[1:-1, 1:-1] += jitter
+    if snap:   # vertices on pixel centres and corners
         grid[1:-1, 1:-1] = np.round(grid[1:-1, 1:-1] * 2) / 2
     tris = []
     for j in range(n):
         for i in range(n):
             a, b, c, d = grid[j, i], grid[j, i + 1], grid[j + 1, i + 1], grid[j + 1, i]
-            first, second = ([a, b, c], [a, c, d]) if rng.integers(2) else ([a, b, d], [b, c, d])
-            if rng.integers(2):
+            first, second = ([a, b, c], [a, c, d]) if diagonals[j, i] else ([a, b, d], [b, c, d])
+            if clockwise[j, i]:
                 first = first[::-1]   # clockwise: both windings must tile
             tris += [first, second]
     positions = ((0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875)) if msaa else ((0.5, 0.5),)
     # The viewport is inside the mesh, so clipping never moves an edge here.
     cover = _cover(np.array(tris), width, height, precision, positions).sum(axis=0)
     np.testing.assert_array_equal(cover, len(positions))
+
+
+@settings(max_examples=100, deadline=None, derandomize=True, database=None)
+@given(pixel=st.tuples(st.integers(4, 11), st.integers(4, 11)), angle=st.floats(0, 2 * np.pi),
+       ahead=st.floats(0.3, 3.0), behind=st.floats(0.3, 3.0), side=st.floats(0.5, 3.0),
+       along=st.floats(-1.0, 1.0), clockwise=st.booleans(), precision=st.sampled_from(["gl", "exact"]))
+def test_shared_edge_through_a_pixel_centre_covers_it_once(pixel, angle, ahead, behind, side, along,
+                                                            clockwise, precision):
+    """Two triangles share an edge P Q that passes through a pixel centre S up to
+    float64 rounding (P = S + a d, Q = S - b d, d at any angle), their third
+    vertices on either side: S and every other sample are covered at most once,
+    S exactly once.  In exact precision this holds only because both
+    triangles evaluate the shared edge from the same end point
+    (`setup.edge_equations`' canonical order): from opposite ends the two
+    float64 values at S are not exactly opposite."""
+    s = np.array(pixel) + 0.5
+    d = np.array([np.cos(angle), np.sin(angle)])
+    normal = np.array([-d[1], d[0]])
+    p, q = s + ahead * d, s - behind * d
+    first, second = [p, q, s + side * normal + along * d], [q, p, s - side * normal + along * d]
+    if clockwise:
+        first = first[::-1]
+    cover = _cover(np.array([first, second]), 16, 16, precision).sum(axis=0)
+    assert cover.max() <= 1
+    assert cover[pixel[1], pixel[0]] == 1
