@@ -24,6 +24,7 @@ PATH = re.compile(r"(?<![\w/])tests/((?:[\w-]+/)*[\w-]+\.py)(?:::(\w+))?")
 NAME = re.compile(r"(?<![\w/.])(test_\w+)(\.py)?\b")
 
 
+@functools.lru_cache(maxsize=1)
 def documents() -> dict[str, str]:
     """{path relative to the repository: text} of every file whose claims are checked."""
     files = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")),

@@ -209,16 +209,16 @@ def test_viewport_transform_is_fused_for_input_vertices_unfused_for_new_ones_lik
     transform, product and sum rounded separately (README, the ``fused``
     argument of `setup.viewport_transform`).  Among random triangles on a
     999 x 601 viewport (W/2 and H/2 not powers of two, so the product
-    rounds) -- 4,000 inside the view for "input", 20,000 through the near and
+    rounds) -- 3,000 inside the view for "input", 10,000 through the near and
     side planes for "new" -- those whose coverage the other form for these
-    vertices would change (input: 27, new: 50), the first 12: GL draws every one as
+    vertices would change (input: 19, new: 26), the first 12: GL draws every one as
     softras does, the other form differs from GL on each, and the fast path
     and render_scene(fast_path=False) draw them as GL."""
     import softras
     from softras import vertex
     from softras.pipeline import render_scene
 
-    width, height, n = 999, 601, 20000 if vertices == "new" else 4000
+    width, height, n = 999, 601, 10000 if vertices == "new" else 3000
     rng = np.random.default_rng(20261125)
     if vertices == "new":
         w = rng.uniform(0.1, 3.0, size=(n, 3, 1))                  # w < NEAR: through the near plane
