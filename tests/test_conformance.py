@@ -2,9 +2,9 @@
 softras.ambiguity) and ``softras conformance``.
 
 Scenes are tiny dicts in pixel units written to tmp_path, plus
-scenes/blend_equations.json, whose softras and GL pictures differ by a known
-1/255 in 1402 pixels (rounding of blended values; its own tolerance, threshold
-1, allows it): with a tolerance of 0 it must fail, in the colour stage.
+scenes/lit_textured_sphere.json, whose softras and GL pictures differ by a
+known 1/255 in 5 pixels (KNOWN_1_LEVEL; its tolerance allows it): with a
+tolerance of 0 it must fail, in the colour stage.
 Tests that render with glref carry the ``gl`` marker.
 """
 

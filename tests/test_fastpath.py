@@ -304,14 +304,20 @@ def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
 
 
 def test_reused_scratch_buffers_do_not_leak_between_renders():
-    """Set-up tables, corner attributes and depth live in reused buffers: a big
-    scene, a small one, then the big one again give the same bytes, and a
-    returned colour buffer is not overwritten by the next render."""
+    """Set-up tables, corner attributes, depth and (render_scene's) colour live
+    in reused buffers: a big scene, a small one, then the big one again give
+    the same bytes, and a returned picture or colour buffer is not overwritten
+    by the next render (`ops.resolve_llvmpipe_bytes` copies the reused colour
+    buffer at one sample; a picture that were a view of it would change)."""
     from softras import bench
     big = softras.load_scene(bench.grid_scene(30, 160))
     small = softras.load_scene(random_scene(3, width=40, height=30))
+    same_size = softras.load_scene(bench.grid_scene(12, 160))
     first = render_scene(big, precision="gl")
+    snapshot = first.copy()
     render_scene(small, precision="gl")
+    render_scene(same_size, precision="gl")
+    assert_same(snapshot, first, "a returned picture after two more renders")
     assert_same(first, render_scene(big, precision="gl"), "big scene after a small one")
     positions = np.array([[0.5, 0.5]])
     kept = fastpath.render_samples(big, positions)
@@ -338,3 +344,180 @@ def test_scratch_nbytes_counts_the_reused_buffers():
     held = fastpath.scratch_nbytes()
     assert held >= 96 * 96 * (8 + 4)                       # depth (float64) and colour (RGBA8) at least
     assert held >= 2 * 8 * 8 * (fastpath._NF + fastpath._NI) * 8   # the set-up tables of 128 triangles
+
+
+# ----------------------------------------------------------------------------- size thresholds
+#
+# Each size at which the fast path changes what it does, just below, at and
+# just above: PARALLEL_SETUP (the set-up in parallel chunks), TILE (the
+# binning), BLOCK (the coverage blocks), LANES (the lanes shaded at once),
+# _Scratch.MAX_BYTES (buffers kept between renders) and the texture tables'
+# cache (cleared at 16 entries).  Byte equality with the stages every time.
+
+
+def counted_scene(target: int, *, seed: int, textured: bool = False, cull: str = "none",
+                  width: int = 97, height: int = 75) -> dict:
+    """One draw whose clipped triangle list (what `fastpath._setup` sets up) has
+    exactly ``target`` triangles: small random triangles of both windings, a
+    fifth of them through the near plane or the sides of the frustum (fanned
+    into several), then triangles inside the view to make up the count."""
+    rng = np.random.default_rng(seed)
+    camera = {"projection": "perspective", "fov_y": 70, "near": 0.5, "far": 4, "eye": [0, 0, 2.5],
+              "target": [0, 0, 0]}
+
+    def triangles(n, spread):
+        centre = rng.uniform(-1, 1, size=(n, 1, 3)) * spread + [0, 0, 0.3]
+        return centre + rng.uniform(-0.15, 0.15, size=(n, 3, 3))
+
+    spread = np.where(rng.random((target, 1, 1)) < 0.2, [2.5, 1.8, 2.0], [0.8, 0.6, 0.8])
+    pool = triangles(target, spread)
+    scene = {"softras_scene": 1, "width": width, "height": height, "background": [0.1, 0.2, 0.3, 1],
+             "camera": camera, "textures": {}, "nodes": []}
+    loaded = softras.load_scene(dict(scene, nodes=[{"name": "pool", "mesh": {
+        "positions": pool.reshape(-1, 3).tolist(), "indices": np.arange(3 * target).reshape(-1, 3).tolist()}}]))
+    fans = np.bincount(clip_list(loaded, 0)[0], minlength=target)
+    keep = int(np.searchsorted(np.cumsum(fans), target, side="right"))
+    extra = target - int(fans[:keep].sum())
+    xyz = np.concatenate([pool[:keep], triangles(extra, np.array([0.3, 0.3, 0.3]))]).reshape(-1, 3)
+    n = len(xyz) // 3
+    mesh = {"positions": xyz.tolist(), "indices": np.arange(3 * n).reshape(n, 3).tolist(),
+            "colors": rng.uniform(0, 1, size=(3 * n, 4)).round(3).tolist()}
+    node = {"name": "counted", "mesh": mesh, "cull": cull, "blend": "over", "depth_test": "less"}
+    if textured:
+        mesh["uvs"] = rng.uniform(-1, 2, size=(3 * n, 2)).tolist()
+        scene["textures"] = {"t": {"procedural": "noise", "size": [16, 16], "min_filter": "linear_mipmap_linear",
+                                   "mag_filter": "linear"}}
+        node["material"] = {"texture": "t"}
+    scene["nodes"] = [node]
+    assert len(clip_list(softras.load_scene(scene), 0)[0]) == target
+    return scene
+
+
+def clip_list(scene, k):
+    """`clip.triangle_list_gl` of draw k, as `fastpath.draw_triangles` calls it."""
+    from softras import clip, vertex
+    draw = scene.draws[k]
+    mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
+    return clip.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"), draw.mesh.indices)
+
+
+@pytest.mark.parametrize("textured", [False, True])
+@pytest.mark.parametrize("offset", [-1, 0, 1])
+def test_parallel_setup_threshold_is_bit_identical(offset, textured):
+    """PARALLEL_SETUP - 1, PARALLEL_SETUP and + 1 clipped triangles (serial and
+    parallel `_setup`), fans from the clipper among them, colours and uvs at the
+    corners, with 1 and 2 threads (4 chunks per thread)."""
+    import numba
+    assert fastpath.PARALLEL_SETUP == 4096
+    target = fastpath.PARALLEL_SETUP + offset
+    scene = softras.load_scene(counted_scene(target, seed=300 + offset, textured=textured,
+                                             cull="back" if offset else "none"))
+    general = render_scene(scene, precision="gl", fast_path=False)
+    before = numba.get_num_threads()
+    try:
+        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+            numba.set_num_threads(threads)
+            # Zeroed scratch tables: a triangle the set-up skipped is then
+            # invisible (and the picture wrong), not drawn from stale rows.
+            for buffer in fastpath._scratch.buffers.values():
+                buffer.fill(0)
+            assert_same(general, render_scene(scene, precision="gl"),
+                        f"{target} triangles, textured {textured}, {threads} threads")
+    finally:
+        numba.set_num_threads(before)
+
+
+def full_screen(width: int, height: int, textured: bool = False, samples: int = 1) -> dict:
+    """One triangle over the whole viewport (and a second, half-transparent,
+    over the lower-left half): every pixel, whole blocks, every lane."""
+    mesh = {"positions": [[-1, -1, 0], [3, -1, 0], [-1, 3, 0]], "indices": [[0, 1, 2]],
+            "colors": [[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1]]}
+    half = {"positions": [[-1, -1, 0.5], [0.9, -1, 0.5], [-1, 0.7, 0.5]], "indices": [[0, 1, 2]],
+            "colors": [[0.2, 0.8, 0.4, 0.5]] * 3}
+    if textured:
+        mesh["uvs"] = half["uvs"] = [[0, 0], [7, 0], [0, 5]]
+    scene = {"softras_scene": 1, "width": width, "height": height, "background": [0, 0, 0, 1],
+             "samples": samples, "textures": {}, "nodes": [
+                 {"name": "all", "mesh": mesh}, {"name": "half", "mesh": half, "blend": "over"}]}
+    if textured:
+        scene["textures"]["t"] = {"procedural": "checker", "size": [16, 16], "squares": 4,
+                                  "min_filter": "linear_mipmap_linear", "mag_filter": "linear"}
+        for node in scene["nodes"]:
+            node["material"] = {"texture": "t"}
+    return scene
+
+
+# Viewports whose pixel counts straddle LANES (63, 64, 65, 127, 128, 129: one
+# block of 8x8 = 64 lanes, rows of 8-pixel blocks) and whose sides straddle
+# BLOCK (7, 8, 9, 15, 16, 17) and TILE (63, 64, 65, 127, 128, 129).
+SIZES = [(9, 7), (8, 8), (13, 5), (127, 1), (16, 8), (129, 1), (7, 9), (17, 15),
+         (63, 65), (64, 64), (65, 63), (128, 129), (129, 127)]
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+@pytest.mark.parametrize("textured", [False, True])
+def test_block_lane_and_tile_sizes_are_bit_identical(textured, samples):
+    """Full-screen draws on viewports around BLOCK, LANES and TILE."""
+    assert (fastpath.BLOCK, fastpath.LANES, fastpath.TILE) == (8, 64, 64)
+    for width, height in SIZES:
+        scene = softras.load_scene(full_screen(width, height, textured, samples))
+        assert_same(*both_paths(scene), f"{width}x{height}, textured {textured}, {samples} samples")
+
+
+def test_rectangles_around_block_and_lane_sizes_are_bit_identical():
+    """Pixel-aligned rectangles 1..17 pixels on a side (two triangles each, at
+    odd and even starts: textured blocks start at even pixels) across 64-pixel
+    tile borders, untextured and textured, 1 and 4 samples."""
+    width, height = 150, 140
+    rng = np.random.default_rng(400)
+    nodes = []
+    sides = [1, 2, 7, 8, 9, 15, 16, 17]
+    for k, (w, h) in enumerate([(w, h) for w in sides for h in sides]):
+        x0, y0 = int(rng.integers(40, 90)), int(rng.integers(40, 80))
+        corners = np.array([[x0, y0], [x0 + w, y0], [x0 + w, y0 + h], [x0, y0 + h]], float)
+        ndc = np.concatenate([corners / [width / 2, height / 2] - 1, np.zeros((4, 1))], axis=1)
+        node = {"name": f"r{k}", "blend": "add", "depth_test": False,
+                "mesh": {"positions": ndc.tolist(), "indices": [[0, 1, 2], [0, 2, 3]],
+                         "colors": [[0.05, 0.03, 0.02, 1]] * 4, "uvs": (corners / 16).tolist()}}
+        if k % 2:
+            node["material"] = {"texture": "t"}
+        nodes.append(node)
+    data = {"softras_scene": 1, "width": width, "height": height, "background": [0, 0, 0, 1],
+            "textures": {"t": {"procedural": "noise", "size": [8, 8], "min_filter": "linear",
+                               "mag_filter": "linear"}}, "nodes": nodes}
+    for samples in (1, 4):
+        assert_same(*both_paths(softras.load_scene(dict(data, samples=samples))), f"rectangles, {samples} samples")
+
+
+def test_scratch_limit_is_bit_identical(monkeypatch):
+    """`_Scratch.MAX_BYTES` (64 MiB; here 64 x 48 x 4 bytes): a buffer at the limit
+    is kept and reused, one over it is fresh each render and not kept; renders
+    either side of the limit, in turn, give the stages' bytes."""
+    limit = 64 * 48 * 4
+    monkeypatch.setattr(fastpath._Scratch, "MAX_BYTES", limit)
+    monkeypatch.setattr(fastpath, "_scratch", fastpath._Scratch())
+    at, over = (softras.load_scene(random_scene(500 + k, width=64, height=48 + k)) for k in (0, 1))
+    expected = {k: render_scene(s, precision="gl", fast_path=False) for k, s in (("at", at), ("over", over))}
+    for name, scene in (("at", at), ("over", over), ("at", at), ("over", over), ("at", at)):
+        assert_same(expected[name], render_scene(scene, precision="gl"), f"{name} the scratch limit")
+        held = {name: buffer.nbytes for name, buffer in fastpath._scratch.buffers.items()}
+        assert held.get("color") == held.get("depth") == limit, f"buffers kept after {name}: {held}"
+    assert fastpath.scratch_nbytes() == sum(b.nbytes for b in fastpath._scratch.buffers.values())
+
+
+def test_texture_table_cache_limit_is_bit_identical():
+    """More textures than the tables' cache holds (it is cleared at 16): 20
+    textured draws, each its own texture, rendered twice."""
+    nodes, textures = [], {}
+    for k in range(20):
+        textures[f"t{k}"] = {"procedural": "noise" if k % 2 else "checker", "size": [4 + k, 8],
+                             "min_filter": "nearest_mipmap_linear", "mag_filter": "nearest"}
+        x = -1 + k * 0.1
+        nodes.append({"name": f"n{k}", "material": {"texture": f"t{k}"},
+                      "mesh": {"positions": [[x, -1, 0], [x + 0.1, -1, 0], [x + 0.05, 1, 0]],
+                               "indices": [[0, 1, 2]], "uvs": [[0, 0], [1, 0], [0.5, 3]]}})
+    scene = softras.load_scene({"softras_scene": 1, "width": 80, "height": 30, "textures": textures,
+                                "nodes": nodes})
+    general, fast = both_paths(scene)
+    assert_same(general, fast, "20 textures")
+    assert_same(general, render_scene(scene, precision="gl"), "20 textures, again")

@@ -51,7 +51,7 @@ from softras.sampling import GL_CENTER, GL_MSAA4
 PER_PASS = 24
 PER_PASS_MSAA = 9
 TRIANGLES_PER_KIND = 1008
-RENDER_SCENE_EVERY = 7          # every 7th pass also through render_scene(fast_path=False)
+RENDER_SCENE_EVERY = 14         # every 14th pass also through render_scene(fast_path=False)
 KINDS = ["pixel_centres", "pixel_corners", "subpixel", "slivers", "ties", "large"]
 CLIP_KINDS = ["near_far", "sides", "behind_eye", "far_outside"]
 CULLS = ["none", "back", "front"]
@@ -237,7 +237,8 @@ def stage_image(scene, positions: np.ndarray, ties: bool = False):
                                      unit=unit, generated=clipped.generated)
         frags = rasterize.rasterize(tris, offsets, unit)
         draw = np.asarray(owner, int)[clipped.source[tris.triangle]][frags.tri]
-        bits = sum((frags.mask.astype(np.int64) >> s) & 1 for s in range(len(positions)))
+        bits = (frags.mask if len(positions) == 1 else
+                sum((frags.mask.astype(np.int64) >> s) & 1 for s in range(len(positions))))
         where = np.ravel_multi_index((height - 1 - frags.y, frags.x, channel[draw]), (height, width, 3))
         image += np.bincount(where, bits * value[draw], image.size)
         if ties:

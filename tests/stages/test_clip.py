@@ -151,7 +151,7 @@ def test_compiled_clipper_equals_clip_polygon():
     assert (ref_weights[passed] == np.eye(3)).all()
 
 
-# ----------------------------------------------------------------------------- new vertices' viewport
+# ----------------------------------------------------------------------------- the viewport transform's rounding
 
 
 NEAR, FAR = 0.5, 4.0
@@ -170,16 +170,17 @@ def _pass_scene(positions, width, height):
             "camera": {"projection_matrix": PERSPECTIVE, "view_matrix": IDENTITY}, "nodes": nodes}
 
 
-def _stage_fragments(clip, width, height, fused_new_vertices):
+def _stage_fragments(clip, width, height, other_form=None):
     """(triangle, x, GL row) of the pixels the triangles (n, 3, 4) cover through
-    the stages, new vertices through the unfused viewport transform (as
-    softras does) or the fused one (as llvmpipe's vertex code does for input
-    vertices)."""
+    the stages: input vertices through the fused viewport transform and new
+    ones through the unfused one, as softras does; other_form "input" or
+    "new": those vertices through the other form."""
     n = len(clip)
     offsets, unit = setup.sample_offsets(np.array([[0.5, 0.5]]), "gl")
     clipped = clip_triangles(clip.reshape(-1, 4), np.arange(3 * n).reshape(n, 3), precision="gl")
-    tris = setup.setup_triangles(clipped.clip, width, height, offsets=offsets, unit=unit,
-                                 generated=None if fused_new_vertices else clipped.generated)
+    unfused = {None: clipped.generated, "new": np.zeros_like(clipped.generated),
+               "input": np.ones_like(clipped.generated)}[other_form]
+    tris = setup.setup_triangles(clipped.clip, width, height, offsets=offsets, unit=unit, generated=unfused)
     frags = rasterize.rasterize(tris, offsets, unit)
     return clipped.source[tris.triangle[frags.tri]], frags.x, frags.y
 
@@ -201,44 +202,52 @@ def _masks(fragments, n, width, height):
 
 
 @pytest.mark.gl
-def test_new_vertices_use_the_unfused_viewport_transform_like_llvmpipe():
-    """Vertices made by the clipper go through Mesa's C viewport transform,
-    product and sum rounded separately, not the fused multiply-add of
-    llvmpipe's vertex code (README, `setup.viewport_transform`'s ``fused``).
-    Among 20,000 triangles through the near and side planes of a 999 x 601
-    viewport (W/2 and H/2 not powers of two, so the product rounds), the
-    first 12 whose coverage the two forms change (of 50): GL draws every one
-    as the unfused form does, the fused form differs from GL on each, and
-    the fast path and render_scene(fast_path=False) draw them as GL."""
+@pytest.mark.parametrize("vertices", ["input", "new"])
+def test_viewport_transform_is_fused_for_input_vertices_unfused_for_new_ones_like_llvmpipe(vertices):
+    """llvmpipe's vertex code computes x_w = fma(x / w, W/2, W/2) with one
+    rounding; vertices made by the clipper go through Mesa's C viewport
+    transform, product and sum rounded separately (README, the ``fused``
+    argument of `setup.viewport_transform`).  Among random triangles on a
+    999 x 601 viewport (W/2 and H/2 not powers of two, so the product
+    rounds) -- 3,000 inside the view for "input", 10,000 through the near and
+    side planes for "new" -- those whose coverage the other form for these
+    vertices would change (input: 19, new: 26), the first 12: GL draws every one as
+    softras does, the other form differs from GL on each, and the fast path
+    and render_scene(fast_path=False) draw them as GL."""
     import softras
     from softras import vertex
     from softras.pipeline import render_scene
 
-    width, height, n = 999, 601, 20000
+    width, height, n = 999, 601, 10000 if vertices == "new" else 3000
     rng = np.random.default_rng(20261125)
-    w = rng.uniform(0.1, 3.0, size=(n, 3, 1))                      # w < NEAR: through the near plane
-    xy = rng.uniform(-1.3, 1.3, size=(n, 3, 2)) * w
+    if vertices == "new":
+        w = rng.uniform(0.1, 3.0, size=(n, 3, 1))                  # w < NEAR: through the near plane
+        xy = rng.uniform(-1.3, 1.3, size=(n, 3, 2)) * w
+    else:
+        w = rng.uniform(0.6, 3.0, size=(n, 3, 1))
+        xy = rng.uniform(-0.98, 0.98, size=(n, 3, 2)) * w
     positions = np.concatenate([xy, -w], axis=2)
     mvp = np.array(PERSPECTIVE, float).reshape(4, 4)
     clip = vertex.to_clip(positions.reshape(-1, 3), mvp, "gl").reshape(n, 3, 4)
-    # Candidates: a new vertex whose snapped position depends on the form.
+    # Candidates: a vertex of the kind whose snapped position depends on the form.
     clipped = clip_triangles(clip.reshape(-1, 4), np.arange(3 * n).reshape(n, 3), precision="gl")
     snapped = [setup.snap(setup.viewport_transform(clipped.clip, width, height, "gl", fused)[0][..., :2])
                for fused in (True, False)]
-    moved = ((snapped[0] != snapped[1]).any(axis=2) & clipped.generated).any(axis=1)
+    kind = clipped.generated if vertices == "new" else ~clipped.generated
+    moved = ((snapped[0] != snapped[1]).any(axis=2) & kind).any(axis=1)
     candidates = np.unique(clipped.source[moved])
-    unfused, fused = (_signatures(_stage_fragments(clip[candidates], width, height, f), len(candidates), width)
-                      for f in (False, True))
-    differ = candidates[(unfused != fused).any(axis=1)]
-    assert len(differ) >= 12, (f"{len(differ)} of the {len(candidates)} triangles with a new vertex whose snapped "
+    ours, other = (_signatures(_stage_fragments(clip[candidates], width, height, f), len(candidates), width)
+                   for f in (None, vertices))
+    differ = candidates[(ours != other).any(axis=1)]
+    assert len(differ) >= 12, (f"{len(differ)} of the {len(candidates)} triangles with a vertex whose snapped "
                                f"position depends on the form change coverage: does setup_triangles use `generated`?")
     chosen = differ[:12]
     scene = softras.load_scene(_pass_scene(positions[chosen], width, height))
     gl = softras.render(scene, backend="gl")
     gl_masks = np.stack([(gl[..., k // 8] >> (k % 8)) & 1 for k in range(12)]).astype(bool)
-    unfused, fused = (_masks(_stage_fragments(clip[chosen], width, height, f), 12, width, height)
-                      for f in (False, True))
-    assert (unfused == gl_masks).all(axis=(1, 2)).all(), chosen[(unfused != gl_masks).any(axis=(1, 2))]
-    assert (fused != gl_masks).any(axis=(1, 2)).all(), chosen[(fused == gl_masks).all(axis=(1, 2))]
+    ours, other = (_masks(_stage_fragments(clip[chosen], width, height, f), 12, width, height)
+                   for f in (None, vertices))
+    assert (ours == gl_masks).all(axis=(1, 2)).all(), chosen[(ours != gl_masks).any(axis=(1, 2))]
+    assert (other != gl_masks).any(axis=(1, 2)).all(), chosen[(other == gl_masks).all(axis=(1, 2))]
     for path, image in (("fast path", softras.render(scene)), ("stages", render_scene(scene, fast_path=False))):
         assert (image == gl).all(), f"{path}: {int((image != gl).any(axis=2).sum())} pixels differ from GL"

@@ -88,26 +88,31 @@ def test_tessellated_mesh_covers_every_sample_exactly_once(jitter, snap, diagona
     np.testing.assert_array_equal(cover, len(positions))
 
 
-@settings(max_examples=100, deadline=None, derandomize=True, database=None)
-@given(pixel=st.tuples(st.integers(4, 11), st.integers(4, 11)), angle=st.floats(0, 2 * np.pi),
-       ahead=st.floats(0.3, 3.0), behind=st.floats(0.3, 3.0), side=st.floats(0.5, 3.0),
-       along=st.floats(-1.0, 1.0), clockwise=st.booleans(), precision=st.sampled_from(["gl", "exact"]))
-def test_shared_edge_through_a_pixel_centre_covers_it_once(pixel, angle, ahead, behind, side, along,
-                                                            clockwise, precision):
-    """Two triangles share an edge P Q that passes through a pixel centre S up to
-    float64 rounding (P = S + a d, Q = S - b d, d at any angle), their third
-    vertices on either side: S and every other sample are covered at most once,
-    S exactly once.  In exact precision this holds only because both
-    triangles evaluate the shared edge from the same end point
-    (`setup.edge_equations`' canonical order): from opposite ends the two
-    float64 values at S are not exactly opposite."""
-    s = np.array(pixel) + 0.5
-    d = np.array([np.cos(angle), np.sin(angle)])
-    normal = np.array([-d[1], d[0]])
-    p, q = s + ahead * d, s - behind * d
-    first, second = [p, q, s + side * normal + along * d], [q, p, s - side * normal + along * d]
-    if clockwise:
-        first = first[::-1]
-    cover = _cover(np.array([first, second]), 16, 16, precision).sum(axis=0)
+EDGE = st.tuples(st.floats(0, 2 * np.pi), st.floats(0.3, 3.0), st.floats(0.3, 3.0), st.floats(0.5, 3.0),
+                st.floats(-1.0, 1.0), st.booleans())
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(edges=st.lists(EDGE, min_size=16, max_size=16), precision=st.sampled_from(["gl", "exact"]))
+def test_shared_edge_through_a_pixel_centre_covers_it_once(edges, precision):
+    """Pairs of triangles that share an edge P Q through a pixel centre S up
+    to float64 rounding (P = S + a d, Q = S - b d, d at any angle; 16
+    pairs per example, each in its own 16 x 16 cell), their third vertices on
+    either side: every sample is covered at most once, S exactly once.  In
+    exact precision this holds only because both triangles evaluate the
+    shared edge from the same end point (`setup.edge_equations`' canonical
+    order): from opposite ends the two float64 values at S are not exactly
+    opposite."""
+    triangles, centres = [], []
+    for k, (angle, ahead, behind, side, along, clockwise) in enumerate(edges):
+        s = np.array([16 * (k % 4) + 8.5, 16 * (k // 4) + 8.5])
+        d = np.array([np.cos(angle), np.sin(angle)])
+        normal = np.array([-d[1], d[0]])
+        p, q = s + ahead * d, s - behind * d
+        first, second = [p, q, s + side * normal + along * d], [q, p, s - side * normal + along * d]
+        triangles += [first[::-1] if clockwise else first, second]
+        centres.append(s)
+    cover = _cover(np.array(triangles), 64, 64, precision).sum(axis=0)
     assert cover.max() <= 1
-    assert cover[pixel[1], pixel[0]] == 1
+    for k, s in enumerate(centres):
+        assert cover[int(s[1]), int(s[0])] == 1, edges[k]
