@@ -151,3 +151,110 @@ def test_depth_is_rounded_to_nearest_at_24_bits():
         wrong = np.nonzero((soft != green).any(axis=2).any(axis=0))[0] // width
         assert len(wrong) == 0, f"fast_path={fast_path}: the second quad fails the equal test in columns " \
                                 f"{sorted(set(wrong.tolist()))}"
+
+
+# ----------------------------------------------------------------------------- the vertex transform
+
+
+NEAR, FAR = 0.5, 4.0
+PERSPECTIVE = np.array([[1, 0, 0, 0], [0, 1, 0, 0],
+                        [0, 0, -(FAR + NEAR) / (FAR - NEAR), -2 * FAR * NEAR / (FAR - NEAR)], [0, 0, -1, 0]])
+
+
+def _stage_fragments(clip, width, height):
+    """(triangle, x, GL row) of the pixels the triangles (n, 3, 4), clip space,
+    cover through the readable clip, setup and rasterize stages (one sample)."""
+    from softras import rasterize, setup
+    from softras.clip import clip_triangles
+    n = len(clip)
+    offsets, unit = setup.sample_offsets(np.array([[0.5, 0.5]]), "gl")
+    clipped = clip_triangles(clip.reshape(-1, 4), np.arange(3 * n).reshape(n, 3), precision="gl")
+    tris = setup.setup_triangles(clipped.clip, width, height, offsets=offsets, unit=unit,
+                                 generated=clipped.generated)
+    frags = rasterize.rasterize(tris, offsets, unit)
+    return clipped.source[tris.triangle[frags.tri]], frags.x, frags.y
+
+
+def _coverage_keys(fragments, n, width):
+    """(n, 3) per triangle: its pixel count, and the sum and sum of squares of
+    the pixels' indices y * width + x (equal for two coverages here only when
+    they are equal)."""
+    triangle, x, y = fragments
+    key = (y * width + x).astype(float)
+    return np.stack([np.bincount(triangle, weights, n) for weights in (None, key, key * key)], axis=1)
+
+
+def test_vertex_shader_sums_the_matrix_columns_in_order_like_gl():
+    """Mutation ``vertex_sum_order``: ``u_mvp * vec4(p, 1)`` summed in another
+    float32 order. softras and glref share no code here -- glref's shader does
+    the product on GL's side -- but the stage test pins the order only against
+    numpy's sum, i.e. against our own expectation; this asks GL.
+
+    A rotated, scaled and translated view makes every matrix entry and
+    product inexact in float32, so the order of the four terms changes clip
+    coordinates by an ulp, and now and then a snapped vertex and the pixels
+    covered. Of 1,000 random triangles inside the view of a 999 x 601 picture,
+    those whose coverage ``x m0 + y m1 + z m2 + m3`` summed left to right
+    (GLSL's column order, no fused multiply-add) and right to left would
+    differ (24 here), the first 12 are drawn by GL, each adding its own bit:
+    GL covers exactly what the left-to-right sum covers, the other order
+    differs from GL on each, and both of softras's renderers match GL's
+    picture exactly."""
+    from softras import vertex
+    from softras.pipeline import render_scene
+
+    width, height, n = 999, 601, 1000
+    rng = np.random.default_rng(20261123)
+    rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    view = np.eye(4)
+    view[:3, :3] = rotation * 1.7
+    view[:3, 3] = rng.uniform(-3, 3, 3)
+    w = rng.uniform(0.6, 3.0, size=(n, 3, 1))                     # eye space: in front, inside the frustum
+    eye = np.concatenate([rng.uniform(-0.98, 0.98, size=(n, 3, 2)) * w, -w, np.ones((n, 3, 1))], axis=2)
+    world = (np.linalg.inv(view) @ eye.reshape(-1, 4).T).T[:, :3].reshape(n, 3, 3)
+    mvp = PERSPECTIVE @ view
+    ours = vertex.to_clip(world.reshape(-1, 3), mvp, "gl").reshape(n, 3, 4)
+    m, p = mvp.astype(np.float32), world.reshape(-1, 3).astype(np.float32)
+    other = (m[:, 0] * p[:, 0:1] + (m[:, 1] * p[:, 1:2] + (m[:, 2] * p[:, 2:3] + m[:, 3])))
+    other = other.astype(np.float64).reshape(n, 3, 4)
+    keys = [_coverage_keys(_stage_fragments(c, width, height), n, width) for c in (ours, other)]
+    differ = np.nonzero((keys[0] != keys[1]).any(axis=1))[0]
+    assert len(differ) >= 12, f"only {len(differ)} triangles whose coverage depends on the order"
+    chosen = differ[:12]
+    nodes = [{"name": f"t{k}", "mesh": {"positions": tri.tolist(), "indices": [[0, 1, 2]]},
+              "material": {"color": [float(c == k // 8) * (1 << (k % 8)) / 255 for c in range(3)] + [1.0]},
+              "blend": "add", "depth_test": False} for k, tri in enumerate(world[chosen])]
+    scene = load_scene({"softras_scene": 1, "width": width, "height": height, "background": [0, 0, 0, 1],
+                        "camera": {"projection_matrix": PERSPECTIVE.ravel().tolist(),
+                                   "view_matrix": view.ravel().tolist()}, "nodes": nodes})
+    gl = glref.render(scene)
+    gl_masks = np.stack([(gl[..., k // 8] >> (k % 8)) & 1 for k in range(12)]).astype(bool)
+    for name, clip, same in (("left to right", ours, True), ("right to left", other, False)):
+        triangle, x, y = _stage_fragments(clip[chosen], width, height)
+        masks = np.zeros((12, height, width), bool)
+        masks[triangle, height - 1 - y, x] = True
+        equal = (masks == gl_masks).all(axis=(1, 2))
+        assert equal.all() if same else not equal.any(), f"{name}: equal to GL for triangles {chosen[equal]}"
+    for path, image in (("fast path", softras.render(scene)), ("stages", render_scene(scene, fast_path=False))):
+        assert (image == gl).all(), f"{path}: {int((image != gl).any(axis=2).sum())} pixels differ from GL"
+
+
+@pytest.mark.parametrize("backend", ["soft", "gl"])
+@pytest.mark.parametrize("fov_y,aspect,width,height", [(90.0, 1.0, 64, 64), (60.0, 2.0, 96, 48)])
+def test_perspective_camera_frames_a_quad_as_glu_perspective_says(backend, fov_y, aspect, width, height):
+    """Mutation ``projection_full_angle`` (the camera's matrix, which both
+    renderers take from the scene model): gluPerspective's f = cot(fov_y / 2).
+    A quad at distance d spanning half of tan(fov_y / 2) d (times the aspect
+    ratio across) covers the middle half of the picture on both axes: its
+    edges fall on pixel boundaries, so exactly the pixels of the middle half."""
+    t, d = np.tan(np.radians(fov_y) / 2), 2.0
+    hx, hy = 0.5 * d * t * aspect, 0.5 * d * t
+    quad = {"positions": [[-hx, -hy, -d], [hx, -hy, -d], [hx, hy, -d], [-hx, hy, -d]], "indices": [[0, 1, 2], [0, 2, 3]]}
+    scene = load_scene({"softras_scene": 1, "width": width, "height": height, "background": [0, 0, 0, 1],
+                        "camera": {"projection": "perspective", "fov_y": fov_y, "aspect": aspect, "near": 0.5,
+                                   "far": 10, "eye": [0, 0, 0], "target": [0, 0, -1]},
+                        "nodes": [{"mesh": quad, "material": {"color": [1, 1, 1, 1]}}]})
+    covered = softras.render(scene, backend=backend)[..., 0] > 0
+    expected = np.zeros((height, width), bool)
+    expected[height // 4: 3 * height // 4, width // 4: 3 * width // 4] = True
+    assert (covered == expected).all(), f"{int((covered != expected).sum())} pixels differ from the hand count"
