@@ -11,7 +11,8 @@
     softras demo [--scene SCENE.json] [--out-dir DIR] [--json] [--precision gl|exact]
     softras golden [--update] [--golden-dir DIR] [--out-dir DIR] [PATH ...]
     softras conformance [PATH ...] [--report DIR] [-k PATTERN] [--shard I/N] [-j N]
-                        [--profile auto|strict|spec]
+                        [--profile auto|strict|spec] [--timeout S] [--retries K]
+                        [--baseline FILE] [--resume DIR] [--max-memory SIZE]
     softras verify SCENE IMAGE REFERENCE [--profile spec|strict|auto] [--capabilities F]
                    [--json] [--out-dir DIR]
     softras info [--json]
@@ -21,7 +22,8 @@
 ``--gl-device N`` (before the command) picks the N-th EGL device for glref.
 
 Exit status: 0 success or comparison passed, 1 comparison
-failed, 2 bad input or environment error. On status 2 exactly one line,
+failed, 2 bad input or environment error; ``conformance`` also 130 when
+interrupted (SIGINT, SIGTERM), with the report of what finished written. On status 2 exactly one line,
 ``softras: error: <reason>``, goes to stderr, and no output file is created or
 changed: inputs are read and output folders checked before anything is
 written, and every file is written atomically (temporary file + rename).
@@ -543,20 +545,28 @@ def cmd_explain(args: argparse.Namespace) -> int:
 def cmd_conformance(args: argparse.Namespace) -> int:
     """``softras conformance [PATH ...]``: every scene through both renderers, a verdict each.
 
+    The scenes run in supervised worker processes (:mod:`softras.runner`).
     Exit 0 when every scene passes, has a quality warning or is not
-    supported by the GL, 1 when any fails,
-    2 for bad input (a missing path, a bad scene, no scene matching -k, a bad
-    --shard or -j, an unwritable --report folder) or no OpenGL -- found before
-    anything is rendered or written.
+    supported by the GL (with --baseline: when the results match it), 1 when
+    any fails, crashes or times out (with --baseline: a new failure or an
+    unexpected verdict), 2 for bad input (a missing path, a bad scene, no
+    scene matching -k, a bad --shard, -j, --timeout, --retries or
+    --max-memory, an unwritable --report folder, a missing or malformed
+    baseline, a --resume folder without a run or with other options) or no
+    OpenGL -- found before anything is rendered or written -- and 130 when
+    interrupted.
     """
     from datetime import datetime, timezone
 
-    from softras import conformance, golden
+    from softras import conformance, golden, runner
     from softras.scene import SceneError, load_scene
 
-    start = time.perf_counter()
     if args.jobs < 1:
         raise CLIError(f"-j {args.jobs}: need at least 1 process")
+    if args.timeout < 0 or not args.timeout == args.timeout:
+        raise CLIError(f"--timeout {args.timeout}: must be >= 0 seconds (0 = no limit)")
+    if args.retries < 0:
+        raise CLIError(f"--retries {args.retries}: must be >= 0")
     try:
         paths = conformance.select(args.paths or [str(golden.SCENES_DIR)], patterns=args.patterns or (),
                                    shard_spec=args.shard)
@@ -568,7 +578,18 @@ def cmd_conformance(args: argparse.Namespace) -> int:
         except SceneError as error:
             message = _one_line(error)
             raise CLIError(message if str(path) in message else f"{path}: {message}") from None
-    report = _check_output_dir(args.report) if args.report is not None else None
+    if args.resume is not None and args.report is not None and \
+            Path(args.report).resolve() != Path(args.resume).resolve():
+        raise CLIError(f"--resume {args.resume} writes its report there: leave out --report {args.report}")
+    report = _check_output_dir(args.report or args.resume) if (args.report or args.resume) else None
+    try:
+        max_memory = runner.parse_size(args.max_memory) if args.max_memory else runner.default_max_memory()
+        baseline = runner.load_baseline(args.baseline) if args.baseline is not None else None
+        options = runner.run_options(paths, profile=args.profile, timeout=args.timeout, retries=args.retries,
+                                     max_memory=max_memory)
+        done, previous = runner.load_resume(args.resume, paths, options) if args.resume else ({}, {})
+    except runner.RunnerError as error:
+        raise CLIError(_one_line(error)) from None
     try:
         import glref
     except ModuleNotFoundError as error:
@@ -586,40 +607,34 @@ def cmd_conformance(args: argparse.Namespace) -> int:
     except ImportError:
         raise CLIError("FLIP needs the Python package flip-evaluator: pip install flip-evaluator") from None
 
-    jobs = min(args.jobs, max(len(paths), 1))
+    if previous and previous.get("gl_renderer") not in (None, gl_name):
+        raise CLIError(f"--resume {args.resume}: that run rendered with {previous['gl_renderer']}, "
+                       f"this one with {gl_name}")
+
+    jobs = min(args.jobs, max(len(paths) - len(done), 1))
     shard_text = f", shard {args.shard}" if args.shard else ""
     capabilities = glref.info()
     from softras.verifier import choose_profile
 
     profile_text = args.profile if args.profile != "auto" else f"auto: {choose_profile('auto', capabilities)}"
-    print(f"conformance: {len(paths)} scene{'s' if len(paths) != 1 else ''}{shard_text}, "
-          f"{jobs} process{'es' if jobs != 1 else ''}, profile {profile_text}, GL: {gl_name}", flush=True)
-    bar = conformance.ProgressBar(len(paths))
+    resumed = f", {len(done)} done before (--resume)" if args.resume else ""
+    limit = f"{args.timeout:g} s" if args.timeout else "none"
+    print(f"conformance: {len(paths)} scene{'s' if len(paths) != 1 else ''}{shard_text}{resumed}, "
+          f"{jobs} worker process{'es' if jobs != 1 else ''}, profile {profile_text}, timeout {limit}, "
+          f"GL: {gl_name}", flush=True)
+    meta = {"jobs": jobs, "gl_renderer": gl_name, "profile": profile_text, "gl": capabilities,
+            "shard": args.shard, "patterns": args.patterns or [], "paths": [str(path) for path in paths],
+            "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "options": options}
+    again = " ".join(["softras conformance", *(args.paths or []), *(f"-k {p}" for p in args.patterns or []),
+                      *([f"--shard {args.shard}"] if args.shard else []), f"--resume {report}"])
     try:
-        results = conformance.run(paths, jobs=jobs, on_result=bar.advance, profile=args.profile)
-    finally:
-        bar.close()
-    seconds = time.perf_counter() - start
-    tally = conformance.counts(results)
-
-    for result in sorted(results, key=lambda r: (conformance.VERDICT_ORDER[r.verdict], r.name)):
-        print(result.line())
-        if result.verdict != conformance.PASS:
-            for reason in result.reasons[1:]:
-                print(f"{'':<16}{reason}")
-    if report is not None:
-        from softras.report import write_report
-
-        meta = {"seconds": round(seconds, 3), "jobs": jobs, "gl_renderer": gl_name, "profile": profile_text,
-                "gl": capabilities, "shard": args.shard,
-                "patterns": args.patterns or [], "paths": [str(path) for path in paths],
-                "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
-        index = write_report(report, results, meta)
-        print(f"report: {index}")
-    print(f"conformance: {tally['total']} scene{'s' if tally['total'] != 1 else ''}: {tally['pass']} pass, "
-          f"{tally['quality_warning']} quality warning, {tally['fail']} fail, {tally['not_supported']} not supported "
-          f"in {seconds:.1f} s (-j {jobs}, profile {profile_text})")
-    return EXIT_FAILED if tally["fail"] else EXIT_OK
+        return runner.conformance_command(
+            paths, jobs=jobs, profile=args.profile, profile_text=profile_text, timeout=args.timeout,
+            retries=args.retries, max_memory=max_memory, meta=meta, report=report, done=done,
+            seconds_before=float(previous.get("summary", {}).get("seconds") or 0.0), baseline=baseline,
+            resume_hint=f"resume with: {again} (and the same options)")
+    except runner.RunnerError as error:
+        raise CLIError(_one_line(error)) from None
 
 
 def _import_glref():
@@ -819,8 +834,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render each scene with softras and OpenGL and judge it with the scene's tolerance "
                     "(else defaults for its features): PASS within tolerance on every pixel, QUALITY "
                     "WARNING when only pixels of the ambiguity mask (answers that depend on implementation "
-                    "choices) break it, FAIL otherwise, with the stage that disagrees. Exit 0 when nothing "
-                    "fails, 1 when a scene fails, 2 on bad input or no OpenGL.",
+                    "choices) break it, FAIL otherwise, with the stage that disagrees. Each scene is checked "
+                    "in a worker process: one that dies gives its scene CRASH, one over --timeout TIMEOUT, "
+                    "and the run goes on. Exit 0 when nothing fails (with --baseline: the results match "
+                    "it), 1 when a scene fails, crashes or times out (with --baseline: a new failure or "
+                    "unexpected verdict), 2 on bad input or no OpenGL, 130 when interrupted (the report of "
+                    "what finished is written; --resume finishes it).",
     )
     conformance.add_argument("paths", nargs="*", metavar="PATH",
                              help="scene files or folders of them (default: all of scenes/)")
@@ -837,6 +856,23 @@ def build_parser() -> argparse.ArgumentParser:
                              help="only shard I of N (1-based; round robin over the sorted names)")
     conformance.add_argument("-j", "--jobs", type=int, default=1, metavar="N",
                              help="worker processes (each with its own GL context; default 1)")
+    conformance.add_argument("--timeout", type=float, default=300.0, metavar="SECONDS",
+                             help="per-scene time limit: the scene gets TIMEOUT and its worker is killed "
+                                  "(default 300; 0 = none; numba's one-time kernel compilation does not count)")
+    conformance.add_argument("--retries", type=int, default=0, metavar="K",
+                             help="re-run a scene that gets CRASH, TIMEOUT or FAIL up to K times; one whose "
+                                  "verdict changes between attempts is FLAKY (default 0)")
+    conformance.add_argument("--baseline", default=None, metavar="FILE",
+                             help="expected non-passing scenes of this GL, 'scene,VERDICT' per line (a report's "
+                                  "failures.csv is one): exit 0 when the results match, 1 on a new failure or "
+                                  "an unexpected verdict")
+    conformance.add_argument("--resume", default=None, metavar="DIR",
+                             help="finish the interrupted run whose report is in DIR (same paths and options), "
+                                  "without checking its finished scenes again")
+    conformance.add_argument("--max-memory", default=None, metavar="SIZE",
+                             help="memory budget, e.g. 8G or 50%%: a scene whose estimated need (plus its "
+                                  "worker's) is over it is NOT SUPPORTED, refused up front (default 50%% of "
+                                  "this machine's memory)")
     conformance.set_defaults(func=cmd_conformance)
 
     bench = commands.add_parser(

@@ -23,6 +23,10 @@ otherwise the defaults for the features it uses
 Scenes run in this process (``jobs=1``) or in worker processes started with
 ``spawn`` (a fresh interpreter each: every worker creates its own EGL context;
 a context cannot survive ``fork``). Results come back in scene order.
+:mod:`softras.runner` runs them the way ``softras conformance`` does: one
+supervised worker process per job, crash isolation, time limits, retries,
+baselines and resumable reports, and the verdicts that only a runner can give
+(CRASH, TIMEOUT, FLAKY, defined here with the others).
 """
 
 from __future__ import annotations
@@ -46,14 +50,24 @@ from softras.verifier import (FAIL, FEATURE_TOLERANCES, NOT_SUPPORTED, PASS, PRO
                               feature_tolerance, judge_strict, scene_tolerance)
 
 __all__ = [
-    "PASS", "WARN", "FAIL", "NOT_SUPPORTED", "VERDICT_NAMES", "FEATURE_TOLERANCES", "PROFILES",
+    "PASS", "WARN", "FAIL", "NOT_SUPPORTED", "CRASH", "TIMEOUT", "FLAKY", "CONFORMING", "VERDICT_NAMES",
+    "VERDICT_ORDER", "FEATURE_TOLERANCES", "PROFILES",
     "ConformanceError", "SceneResult",
     "feature_tolerance", "scene_tolerance", "select", "parse_shard", "shard", "check_scene", "judge",
     "run", "counts", "ProgressBar",
 ]
 
-#: Failing scenes first, then warnings, then not supported, then passes.
-VERDICT_ORDER = {FAIL: 0, WARN: 1, NOT_SUPPORTED: 2, PASS: 3}
+#: Verdicts of the runner (:mod:`softras.runner`), never of a check: the worker
+#: died (CRASH), overran ``--timeout`` (TIMEOUT), or the verdict changed
+#: between attempts of ``--retries`` (FLAKY).
+CRASH, TIMEOUT, FLAKY = "crash", "timeout", "flaky"
+VERDICT_NAMES = {**VERDICT_NAMES, CRASH: "CRASH", TIMEOUT: "TIMEOUT", FLAKY: "FLAKY"}
+
+#: The verdicts that never fail a run by themselves.
+CONFORMING = (PASS, WARN, NOT_SUPPORTED)
+
+#: Crashes, timeouts and failures first, then flaky scenes, warnings, not supported, passes.
+VERDICT_ORDER = {CRASH: 0, TIMEOUT: 1, FAIL: 2, FLAKY: 3, WARN: 4, NOT_SUPPORTED: 5, PASS: 6}
 
 
 class ConformanceError(ValueError):
@@ -157,6 +171,13 @@ class SceneResult:
     figures: dict = field(default_factory=dict)
     seconds: float = 0.0
     images: dict = field(default_factory=dict, repr=False)
+    attempts: list = field(default_factory=list)
+
+    def failed(self) -> bool:
+        """Whether this scene fails the run: FAIL, CRASH, TIMEOUT, or FLAKY with no attempt conforming."""
+        if self.verdict == FLAKY:
+            return not any(attempt["verdict"] in CONFORMING for attempt in self.attempts)
+        return self.verdict not in CONFORMING
 
     def line(self) -> str:
         """One line for the terminal: verdict, name, first reason, time."""
@@ -165,12 +186,12 @@ class SceneResult:
         return f"{VERDICT_NAMES[self.verdict]:<15} {self.name}: {reason}{more}  ({self.seconds:.2f} s)"
 
     def to_dict(self) -> dict:
-        """JSON-serialisable summary (no arrays)."""
+        """JSON-serialisable summary (no arrays); ``attempts``: one entry per try when retried, else empty."""
         return {"name": self.name, "path": self.path, "verdict": self.verdict,
                 "verdict_name": VERDICT_NAMES[self.verdict], "reasons": list(self.reasons),
                 "description": self.description, "tolerance": dict(self.tolerance),
                 "tolerance_source": self.tolerance_source, "figures": dict(self.figures),
-                "seconds": round(self.seconds, 4)}
+                "seconds": round(self.seconds, 4), "attempts": [dict(attempt) for attempt in self.attempts]}
 
 
 def _render_soft(scene) -> np.ndarray:
@@ -368,6 +389,11 @@ def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], 
     ``if __name__ == "__main__":`` (``softras`` and ``python -m softras`` do).
     Each worker pays a start-up of about 3 s here (numba's cached kernels, an
     EGL context), so ``-j`` helps only with more free cores than workers.
+
+    This is the plain path for the Python API: a crash in the GL driver ends
+    this process (``jobs=1``) or breaks the pool (every pending scene FAILs),
+    and nothing limits a scene's time. :func:`softras.runner.run` (what
+    ``softras conformance`` uses) supervises one worker process per job instead.
     """
     if jobs < 1:
         raise ConformanceError(f"-j {jobs}: need at least 1 process")
@@ -402,8 +428,9 @@ def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], 
 
 
 def counts(results: list[SceneResult]) -> dict:
-    """``{"pass": n, "quality_warning": n, "fail": n, "not_supported": n, "total": n}``."""
+    """``{"pass": n, "quality_warning": n, "fail": n, "not_supported": n, "crash": n, "timeout": n,
+    "flaky": n, "total": n}``."""
     tally = {verdict: sum(r.verdict == verdict for r in results)
-             for verdict in (PASS, WARN, FAIL, NOT_SUPPORTED)}
+             for verdict in (PASS, WARN, FAIL, NOT_SUPPORTED, CRASH, TIMEOUT, FLAKY)}
     tally["total"] = len(results)
     return tally

@@ -7,6 +7,8 @@
     results.json        the run and every scene's verdict, reasons and figures
     junit.xml           one <testcase> per scene (CI systems read it)
     <scene>/*.png       soft, gl, diff, ssim, flip, ambiguity, where
+    failures.csv        (written by softras.runner) every scene that did not pass,
+                        ``name,VERDICT``: a --baseline for the next run
 
 Failing scenes come first, then quality warnings, then passes, each marked
 with a coloured badge, so the page says at a glance which scene failed, where
@@ -14,7 +16,11 @@ with a coloured badge, so the page says at a glance which scene failed, where
 ambiguity mask, cyan inside it) and why (the reasons, naming the stage).
 
 Every file is written atomically (:mod:`softras.imageio`); files of other
-scenes already in the folder are left alone.
+scenes already in the folder are left alone. :mod:`softras.runner` writes a
+scene's pictures as it finishes (:func:`write_scene_images`) and the three
+summary files after each scene (:func:`write_summary`), so an interrupted
+run leaves a valid report of what finished (``"complete": false`` and the
+``pending`` scenes in results.json).
 """
 
 from __future__ import annotations
@@ -25,12 +31,15 @@ import os
 from pathlib import Path
 from xml.etree import ElementTree
 
-from softras.conformance import FAIL, NOT_SUPPORTED, PASS, VERDICT_NAMES, VERDICT_ORDER, WARN, SceneResult, counts
+from softras.conformance import (CONFORMING, CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, VERDICT_NAMES,
+                                 VERDICT_ORDER, WARN, SceneResult, counts)
 
-__all__ = ["FORMAT", "IMAGE_CAPTIONS", "write_report", "results_json", "junit_xml", "index_html"]
+__all__ = ["FORMAT", "IMAGE_CAPTIONS", "write_report", "write_scene_images", "write_summary", "results_json",
+           "junit_xml", "index_html"]
 
-#: Version of results.json.
-FORMAT = 1
+#: Version of results.json (2: the runner's verdicts crash, timeout and flaky, each scene's
+#: ``attempts``, and ``complete`` / ``pending`` / ``options`` of the run).
+FORMAT = 2
 
 #: The pictures of a scene, in the order shown, with their captions.
 IMAGE_CAPTIONS = {
@@ -46,7 +55,8 @@ IMAGE_CAPTIONS = {
     "ambiguity": "ambiguity mask: coverage cyan, depth magenta, sampling yellow",
 }
 
-_COLOURS = {FAIL: "#c62828", WARN: "#ef8f00", NOT_SUPPORTED: "#607d8b", PASS: "#2e7d32"}
+_COLOURS = {FAIL: "#c62828", WARN: "#ef8f00", NOT_SUPPORTED: "#607d8b", PASS: "#2e7d32",
+            CRASH: "#4a148c", TIMEOUT: "#880e4f", FLAKY: "#795548"}
 
 _CSS = """
 body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; background: #fafafa; }
@@ -59,6 +69,9 @@ table.summary td, table.summary th { padding: 0.25em 0.7em; border-bottom: 1px s
 section { background: white; margin: 1.2em 0; padding: 0.8em 1.2em; border-radius: 6px;
           border-left: 8px solid #999; }
 section.fail { border-left-color: #c62828; background: #fff5f5; }
+section.crash { border-left-color: #4a148c; background: #fbf5ff; }
+section.timeout { border-left-color: #880e4f; background: #fff5fa; }
+section.flaky { border-left-color: #795548; background: #fbf8f6; }
 section.warn { border-left-color: #ef8f00; background: #fffaf0; }
 section.pass { border-left-color: #2e7d32; }
 .pictures { display: flex; flex-wrap: wrap; gap: 0.6em; }
@@ -75,12 +88,15 @@ def _image_paths(result: SceneResult) -> dict:
 
 
 def results_json(results: list[SceneResult], meta: dict) -> str:
-    """results.json: ``{"softras_conformance": 1, "summary": {...}, ..., "scenes": [...]}``.
+    """results.json: ``{"softras_conformance": 2, "summary": {...}, ..., "scenes": [...]}``.
 
     ``summary`` has ``pass``, ``quality_warning``, ``fail``, ``not_supported``,
-    ``total`` and ``seconds``; ``gl`` (in ``meta``) the GL's capability record;
-    each scene is :meth:`SceneResult.to_dict` plus ``images`` (paths relative
-    to the report folder), in the order of the run.
+    ``crash``, ``timeout``, ``flaky``, ``total`` and ``seconds``; ``gl`` (in
+    ``meta``) the GL's capability record; each scene is
+    :meth:`SceneResult.to_dict` plus ``images`` (paths relative to the report
+    folder), in the order of the run. The runner's ``meta`` adds ``complete``,
+    ``interrupted``, ``pending`` (scenes not finished), ``options`` (what
+    ``--resume`` checks) and ``baseline`` (the comparison with ``--baseline``).
     """
     scenes = []
     for result in results:
@@ -93,18 +109,52 @@ def results_json(results: list[SceneResult], meta: dict) -> str:
     return json.dumps(data, indent=2) + "\n"
 
 
+def _junit_kind(verdict: str) -> str:
+    """``failure`` for FAIL, ``error`` for CRASH and TIMEOUT (the check never finished)."""
+    return "error" if verdict in (CRASH, TIMEOUT) else "failure"
+
+
+def _final_verdict(result: SceneResult) -> str:
+    """The verdict of a FLAKY scene's last attempt (FAIL without attempts), else the scene's."""
+    if result.verdict != FLAKY:
+        return result.verdict
+    return result.attempts[-1]["verdict"] if result.attempts else FAIL
+
+
+def _junit_attempts(case, attempts: list[dict], prefix: str) -> None:
+    """Maven surefire's rerun elements: ``<flakyFailure>`` / ``<rerunError>`` ... for each failing attempt."""
+    for attempt in attempts:
+        if attempt["verdict"] in CONFORMING:
+            continue
+        tag = prefix + ("Error" if _junit_kind(attempt["verdict"]) == "error" else "Failure")
+        reasons = attempt.get("reasons") or []
+        element = ElementTree.SubElement(case, tag, {
+            "message": f"attempt {attempt['attempt']}: {VERDICT_NAMES[attempt['verdict']]}"
+                       + (f": {reasons[0]}" if reasons else ""), "type": attempt["verdict"]})
+        ElementTree.SubElement(element, "stackTrace").text = "\n".join(reasons)
+
+
 def junit_xml(results: list[SceneResult], meta: dict) -> str:
     """JUnit XML: one ``<testsuite name="softras conformance">``, one ``<testcase>`` per scene.
 
-    FAIL -> ``<failure>`` with the reasons; NOT SUPPORTED -> ``<skipped>``
-    with the reason; QUALITY WARNING -> a passing test case with
+    FAIL -> ``<failure>`` with the reasons; CRASH and TIMEOUT -> ``<error>``
+    (type ``crash`` / ``timeout``: the check never finished); NOT SUPPORTED ->
+    ``<skipped>`` with the reason; QUALITY WARNING -> a passing test case with
     ``<properties><property name="verdict" value="quality_warning">`` and the
-    reasons in ``<system-out>`` (JUnit has no warning state).
+    reasons in ``<system-out>`` (JUnit has no warning state). FLAKY follows
+    Maven surefire's format for reruns (``rerunFailingTestsCount``): a scene
+    that conformed on a later attempt is a passing test case with one
+    ``<flakyFailure>`` / ``<flakyError>`` per failing attempt (readers that do
+    not know these elements see a pass); one that never conformed is a
+    ``<failure>`` / ``<error>`` (its last attempt) with ``<rerunFailure>`` /
+    ``<rerunError>`` for the earlier ones.
     """
     tally = counts(results)
+    kinds = [_junit_kind(_final_verdict(result)) for result in results if result.failed()]
     suite = ElementTree.Element("testsuite", {
-        "name": "softras conformance", "tests": str(tally["total"]), "failures": str(tally[FAIL]),
-        "errors": "0", "skipped": str(tally[NOT_SUPPORTED]), "time": f"{meta.get('seconds') or 0:.3f}"})
+        "name": "softras conformance", "tests": str(tally["total"]), "failures": str(kinds.count("failure")),
+        "errors": str(kinds.count("error")), "skipped": str(tally[NOT_SUPPORTED]),
+        "time": f"{meta.get('seconds') or 0:.3f}"})
     for result in results:
         case = ElementTree.SubElement(suite, "testcase", {
             "classname": "conformance", "name": result.name, "file": result.path,
@@ -112,10 +162,17 @@ def junit_xml(results: list[SceneResult], meta: dict) -> str:
         properties = ElementTree.SubElement(case, "properties")
         ElementTree.SubElement(properties, "property", {"name": "verdict", "value": result.verdict})
         text = "\n".join(result.reasons)
-        if result.verdict == FAIL:
-            failure = ElementTree.SubElement(case, "failure", {
-                "message": result.reasons[0] if result.reasons else "failed", "type": "conformance"})
+        if result.verdict in (FAIL, CRASH, TIMEOUT) or (result.verdict == FLAKY and result.failed()):
+            last = _final_verdict(result)
+            failure = ElementTree.SubElement(case, _junit_kind(last), {
+                "message": result.reasons[0] if result.reasons else "failed",
+                "type": "conformance" if last == FAIL else last})
             failure.text = text
+            if result.verdict == FLAKY:
+                _junit_attempts(case, result.attempts[:-1], "rerun")
+        elif result.verdict == FLAKY:
+            _junit_attempts(case, result.attempts, "flaky")
+            ElementTree.SubElement(case, "system-out").text = f"{VERDICT_NAMES[result.verdict]}: {text}"
         elif result.verdict == NOT_SUPPORTED:
             ElementTree.SubElement(case, "skipped", {"message": text or "not supported"})
         else:
@@ -154,19 +211,29 @@ def index_html(results: list[SceneResult], meta: dict) -> str:
     esc = html.escape
     tally = counts(results)
     ordered = sorted(results, key=lambda r: (VERDICT_ORDER[r.verdict], r.name))
-    worst = FAIL if tally[FAIL] else WARN if tally[WARN] else PASS
+    failed = sum(result.failed() for result in results)
+    worst = FAIL if failed else WARN if tally[WARN] or tally[FLAKY] else PASS
     tested = tally["total"] - tally[NOT_SUPPORTED]
-    headline = {FAIL: f"{tally[FAIL]} of {tally['total']} scenes FAILED",
-                WARN: f"all {tested} scenes tested conform, {tally[WARN]} with quality warnings",
+    flaky = f", {tally[FLAKY]} flaky" if tally[FLAKY] else ""
+    headline = {FAIL: f"{failed} of {tally['total']} scenes FAILED",
+                WARN: f"all {tested} scenes tested conform, {tally[WARN]} with quality warnings{flaky}",
                 PASS: f"all {tested} scenes tested pass"}[worst]
+    extra = "".join(f", {tally[verdict]} {VERDICT_NAMES[verdict].lower()}" for verdict in (CRASH, TIMEOUT, FLAKY)
+                    if tally[verdict])
     seconds = meta.get("seconds")
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            "<title>softras conformance</title>", f"<style>{_CSS}</style></head><body>",
            "<h1>softras conformance report</h1>",
            f'<div class="banner" style="background:{_COLOURS[worst]}">{esc(headline)}: '
            f'{tally[PASS]} pass, {tally[WARN]} quality warning, {tally[FAIL]} fail, '
-           f'{tally[NOT_SUPPORTED]} not supported'
+           f'{tally[NOT_SUPPORTED]} not supported{extra}'
            + (f" &middot; {seconds:.1f} s" if seconds is not None else "") + "</div>"]
+    if meta.get("complete") is False:
+        pending = meta.get("pending") or []
+        why = "interrupted" if meta.get("interrupted") else "still running"
+        out.append(f'<p class="banner" style="background:#455a64">incomplete ({why}): {len(pending)} scene'
+                   f'{"s" if len(pending) != 1 else ""} not run yet; '
+                   f"<code>softras conformance ... --resume DIR</code> finishes it</p>")
     details = [f"GL: {esc(str(meta.get('gl_renderer')))}", f"profile: {esc(str(meta.get('profile')))}",
                f"jobs: {esc(str(meta.get('jobs')))}"]
     if meta.get("shard"):
@@ -180,7 +247,10 @@ def index_html(results: list[SceneResult], meta: dict) -> str:
                "on every pixel (and, in the spec profile, both pictures lie within the bounds of what a "
                "conformant GL may draw); <b>QUALITY WARNING</b> = they differ only in ways GL allows (strict: "
                "on the pixels of the ambiguity mask; spec: within the bounds); <b>FAIL</b> = a difference GL "
-               "does not allow; <b>NOT SUPPORTED</b> = the GL context lacks what the scene needs. Images: "
+               "does not allow; <b>NOT SUPPORTED</b> = the GL context lacks what the scene needs (or it would "
+               "need more memory than --max-memory); <b>CRASH</b> = the worker process died during the check "
+               "(signal or exit status, and its last output); <b>TIMEOUT</b> = the check overran --timeout; "
+               "<b>FLAKY</b> = the verdict changed between attempts (--retries). Images: "
                "row 0 = top; x, y in the reasons count columns and rows from the top left.</p>")
 
     out.append('<table class="summary"><tr><th>verdict</th><th>scene</th><th>why</th>'
@@ -207,6 +277,11 @@ def index_html(results: list[SceneResult], meta: dict) -> str:
                        f"bad pixels &le; {100 * t['max_bad_fraction']:.2f}%, SSIM &ge; {t['min_ssim']:g}</p>")
         out.append('<ul class="reasons">' + "".join(f"<li>{esc(reason)}</li>" for reason in result.reasons)
                    + "</ul>")
+        if result.attempts:
+            out.append('<ol class="reasons">' + "".join(
+                f"<li>{_badge(attempt['verdict'])} {attempt.get('seconds', 0):.2f} s"
+                + (f": {esc(attempt['reasons'][0])}" if attempt.get("reasons") else "") + "</li>"
+                for attempt in result.attempts) + "</ol>")
         if result.figures:
             out.append(f'<p class="figures">{esc(_figures_text(result.figures))}</p>')
         pictures = _image_paths(result)
@@ -235,6 +310,30 @@ def _folder_name(result: SceneResult, taken: set) -> str:
     return name
 
 
+def write_scene_images(folder: str | os.PathLike, result: SceneResult) -> None:
+    """Write one scene's pictures into ``folder/<result.name>/`` (atomically, each)."""
+    from softras.imageio import write_png_atomic
+
+    if not result.images:
+        return
+    (Path(folder) / result.name).mkdir(exist_ok=True)
+    for name in IMAGE_CAPTIONS:
+        if name in result.images:
+            write_png_atomic(Path(folder) / result.name / f"{name}.png", result.images[name])
+
+
+def write_summary(folder: str | os.PathLike, results: list[SceneResult], meta: dict) -> Path:
+    """Write results.json, junit.xml and index.html (atomically, each); returns index.html's path."""
+    from softras.imageio import write_text_atomic
+
+    folder = Path(folder)
+    write_text_atomic(folder / "results.json", results_json(results, meta))
+    write_text_atomic(folder / "junit.xml", junit_xml(results, meta))
+    index = folder / "index.html"
+    write_text_atomic(index, index_html(results, meta))
+    return index
+
+
 def write_report(folder: str | os.PathLike, results: list[SceneResult], meta: dict) -> Path:
     """Write the report into ``folder`` (created if needed); returns index.html's path.
 
@@ -249,21 +348,10 @@ def write_report(folder: str | os.PathLike, results: list[SceneResult], meta: di
         About the run: ``seconds``, ``jobs``, ``gl_renderer``, ``shard``,
         ``patterns``, ``date`` (any JSON-able values; stored in results.json).
     """
-    from softras.imageio import write_png_atomic, write_text_atomic
-
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     taken: set = set()
     for result in results:
         result.name = _folder_name(result, taken)
-        if not result.images:
-            continue
-        (folder / result.name).mkdir(exist_ok=True)
-        for name in IMAGE_CAPTIONS:
-            if name in result.images:
-                write_png_atomic(folder / result.name / f"{name}.png", result.images[name])
-    write_text_atomic(folder / "results.json", results_json(results, meta))
-    write_text_atomic(folder / "junit.xml", junit_xml(results, meta))
-    index = folder / "index.html"
-    write_text_atomic(index, index_html(results, meta))
-    return index
+        write_scene_images(folder, result)
+    return write_summary(folder, results, meta)

@@ -396,4 +396,5 @@ def test_report_files_parse_without_gl(tmp_path):
     assert warn.find("failure") is None
     assert warn.find("properties/property").get("value") == "quality_warning"
     assert json.loads((tmp_path / "results.json").read_text())["summary"] == {
-        "pass": 1, "quality_warning": 1, "fail": 1, "not_supported": 0, "total": 3, "seconds": 1.5}
+        "pass": 1, "quality_warning": 1, "fail": 1, "not_supported": 0, "crash": 0, "timeout": 0, "flaky": 0,
+        "total": 3, "seconds": 1.5}
