@@ -409,8 +409,12 @@ def test_sigint_leaves_a_partial_report_and_resume_completes_it(tmp_path, watchd
     report = tmp_path / "report"
     env = dict(os.environ, SOFTRAS_TEST_FAULT="hang:c_hang", PYTHONPATH=str(REPO))
     command = [sys.executable, "-m", "softras", "conformance", str(folder), "--timeout", "120"]
+    # SIGINT's default action for the child, as a terminal gives it: a shell that starts a job in
+    # the background (nohup, `&` without job control, some CI runners) sets it to ignored, and
+    # POSIX keeps an ignored signal ignored across exec.
     process = subprocess.Popen(command + ["--report", str(report)], cwd=REPO, env=env,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         end = time.monotonic() + 120
         while time.monotonic() < end:    # until a and b are in the report
