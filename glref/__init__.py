@@ -1,7 +1,7 @@
 """glref: the OpenGL reference renderer (moderngl on a headless EGL context).
 
 The only code in the project that imports moderngl. It may import
-`softras.scene` and nothing else from softras (DESIGN.md section 1).
+`softras.scene` and nothing else from softras (tests/test_layers.py).
 
     render(scene, *, samples=None, framebuffer=None, mipmaps="generate")
                                                     -> np.ndarray (H, W, 4), row 0 = top

@@ -17,7 +17,7 @@ readback is flipped so the returned image has row 0 = top of the picture.
 Textures: level 0 comes from `softras.scene.Texture.levels` (premultiplied
 RGBA8, the bytes softras samples) and GL builds the other levels itself with
 glGenerateMipmap (GL 4.6 section 8.14.4), so GL's mip generation is part of
-what softras is compared with (softras.texels.mip_chain reproduces llvmpipe's
+what softras is compared with (softras.scene.texels.mip_chain reproduces llvmpipe's
 byte for byte; ``mipmaps="upload"`` uploads softras's chain instead).  The
 sampler state is set with glTexParameteri on the bound texture.  Lighting
 (flat / gouraud / phong Blinn-Phong in world space) uses lit.vert / lit.frag
@@ -221,7 +221,7 @@ def generate_mipmaps(level0: np.ndarray) -> list[np.ndarray]:
     back, level 0 first, each (H_l, W_l, 4) uint8, row 0 = t 0.
 
     The call glref's textures get their levels from (`_upload_texture`); on
-    llvmpipe `softras.texels.mip_chain` reproduces it byte for byte.
+    llvmpipe `softras.scene.texels.mip_chain` reproduces it byte for byte.
     """
     ctx = get_context()
     level0 = np.ascontiguousarray(level0, np.uint8)

@@ -1,6 +1,6 @@
 """Coverage error of each sample pattern against exact area, on the scene set.
 
-For every triangle of every scene in SCENES (window space, `softras.coverage.
+For every triangle of every scene in SCENES (window space, `softras.pipeline.coverage.
 scene_triangles`) and every pixel it touches, the sampled coverage (covered
 samples / S, from softras's own rasterizer in exact precision: float64 edge
 functions, no snapping, so the figure is the pattern's error alone) is
@@ -29,8 +29,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from softras import coverage, sampling  # noqa: E402
-from softras.imageio import write_text_atomic  # noqa: E402
+from softras.pipeline import coverage, sampling  # noqa: E402
+from softras.scene.imageio import write_text_atomic  # noqa: E402
 from softras.scene import load_scene  # noqa: E402
 
 SCENES = ("msaa_fan", "slivers", "tiny_triangles", "fill_rule_grid", "demo", "lit_spheres")

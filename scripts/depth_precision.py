@@ -34,7 +34,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import softras  # noqa: E402
-from softras import setup, vertex  # noqa: E402
+from softras.pipeline import setup, vertex  # noqa: E402
 from softras.scene import perspective_matrix  # noqa: E402
 
 CONFIGS = [(1.0, 1e3), (0.1, 1e3), (0.01, 1e3), (1e-3, 1e3), (1e-4, 1e3), (1e-5, 1e3),
@@ -64,7 +64,7 @@ def resolves_by_render(backend: str, precision: str = "gl"):
 
 def float32_depth_resolves(near: float, far: float, d: float, eps: float) -> bool:
     """The gl pipeline's window depth of both quads (float32 vertex transform
-    and viewport transform, as `softras.setup.viewport_transform`) compared
+    and viewport transform, as `softras.pipeline.setup.viewport_transform`) compared
     as a float32 depth buffer would store them: no 24-bit rounding."""
     projection = perspective_matrix(60.0, 1.0, near, far)
     points = np.array([[0.0, 0.0, -d], [0.0, 0.0, -(d + eps)]])

@@ -3,7 +3,7 @@
 For every level-0 size w x h in 1..20 x 1..20 plus 37x23, 64x64, 256x256 and
 255x129, two premultiplied contents (noise with random alpha; black and white
 with alpha 0 or 255), GL's levels (`glref.generate_mipmaps`) are compared
-with `softras.texels.mip_chain(level0, method=...)` for method "llvmpipe" and
+with `softras.scene.texels.mip_chain(level0, method=...)` for method "llvmpipe" and
 "box".  Per level (1, 2, ...) the maximum |GL - softras| over all sizes and
 contents is reported twice:
 
@@ -43,7 +43,7 @@ def measure() -> dict:
     import numpy as np
 
     import glref
-    from softras import texels
+    from softras.scene import texels
 
     rng = np.random.default_rng(20)
     rows = []

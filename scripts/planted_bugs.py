@@ -60,7 +60,7 @@ if str(REPO) not in sys.path:
 
 import softras  # noqa: E402
 from softras.scene import Scene, load_scene  # noqa: E402
-from softras.verifier import FAIL, NOT_SUPPORTED, VERDICT_NAMES  # noqa: E402
+from softras.verification.verifier import FAIL, NOT_SUPPORTED, VERDICT_NAMES  # noqa: E402
 
 SCENES = REPO / "scenes"
 IMPLEMENTATIONS = ("llvmpipe", "softpipe")
@@ -229,8 +229,8 @@ def _patched(module, name: str, replacement):
 
 
 def _tie_rule_patch(rule: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]):
-    """A context manager: softras.setup.setup_triangles with ``edge_inclusive = rule(a, b, inclusive)``."""
-    from softras import setup
+    """A context manager: softras.pipeline.setup.setup_triangles with ``edge_inclusive = rule(a, b, inclusive)``."""
+    from softras.pipeline import setup
 
     @contextlib.contextmanager
     def patch():
@@ -258,10 +258,10 @@ fill_rule_ties_excluded = _tie_rule_patch(lambda a, b, inclusive: np.zeros_like(
 
 @contextlib.contextmanager
 def perspective_off():
-    """softras.interpolate.perspective_weights returns the screen-space
+    """softras.pipeline.interpolate.perspective_weights returns the screen-space
     (affine) barycentrics: attributes, texture coordinates and their
     derivatives interpolated without perspective correction."""
-    from softras import interpolate
+    from softras.pipeline import interpolate
 
     with _patched(interpolate, "perspective_weights", lambda lam, inv_w: np.array(lam, dtype=np.float64)):
         yield
@@ -287,7 +287,7 @@ class Mutation:
 
     def render(self, scene: Scene) -> np.ndarray:
         """softras's picture of the scene with this bug planted."""
-        from softras.pipeline import render_scene
+        from softras.renderer import render_scene
 
         if self.patch is None:
             return render_scene(self.mutate(scene), precision="gl")
@@ -466,7 +466,7 @@ def _judge(scene: Scene, image, reference, ref: Reference, profile: str = "spec"
 
 def run(references: list[Reference], mutations=MUTATIONS, *, log=None) -> list[Row]:
     """Judge every unmodified scene and every planted bug against every reference."""
-    from softras.pipeline import render_scene
+    from softras.renderer import render_scene
 
     rows: list[Row] = []
     for name in scene_names(mutations):

@@ -1,12 +1,12 @@
-"""The memory a conformance check adds to a warm worker, against softras.runner's estimate.
+"""The memory a conformance check adds to a warm worker, against softras.verification.runner's estimate.
 
 For each generated scene (a perspective grid, optionally textured, at a size,
 sample count and triangle count), a fresh process checks a tiny scene of the
 same kind first (imports, numba's cached kernels, the GL context), then the
-scene itself with ``softras.conformance.check_scene``, and reports how far its
-peak resident memory (``VmHWM``) rose. Beside it: ``softras.runner.
+scene itself with ``softras.verification.conformance.check_scene``, and reports how far its
+peak resident memory (``VmHWM``) rose. Beside it: ``softras.verification.runner.
 estimate_bytes`` of the scene, which must not be below the measurement
-(``softras.runner.MEMORY_MODEL`` was fitted to these figures).
+(``softras.verification.runner.MEMORY_MODEL`` was fitted to these figures).
 
     python scripts/runner_memory.py [--quick]
 
@@ -62,7 +62,7 @@ def _status(key: str) -> int:
 
 def measure(case: dict) -> dict:
     """In this process: warm up on a tiny scene of the kind, then check the case; its peak RSS rise."""
-    from softras import conformance, runner
+    from softras.verification import conformance, runner
     from softras.scene import load_scene
 
     folder = tempfile.mkdtemp()

@@ -5,11 +5,11 @@ and the GL context included, as a user's command pays them), interleaved
 round by round so that a busy machine slows them alike; the table gives the
 median wall time of each and its ratio to the in-process run:
 
-- ``in-process -j 1``: ``softras.conformance.run(paths)`` (the Python API;
+- ``in-process -j 1``: ``softras.verification.conformance.run(paths)`` (the Python API;
   what ``softras conformance`` did before the runner);
-- ``pool -j 2``: ``softras.conformance.run(paths, jobs=2)`` (a
+- ``pool -j 2``: ``softras.verification.conformance.run(paths, jobs=2)`` (a
   ProcessPoolExecutor: what ``-j 2`` did before);
-- ``runner -j 1`` and ``runner -j 2``: ``softras.runner.run`` (supervised
+- ``runner -j 1`` and ``runner -j 2``: ``softras.verification.runner.run`` (supervised
   workers, as ``softras conformance`` now);
 - ``in-process -j 1, report at the end``: ``conformance.run`` then
   ``report.write_report`` once (the old command's ``--report``);

@@ -207,7 +207,7 @@ def _median_time(fn, runs: int) -> tuple[float, object]:
 def _peak_mib(fn) -> float:
     """tracemalloc peak (MiB) of Python-tracked allocations during fn(), plus the
     fast path's reused buffers held after it (`fastpath.scratch_nbytes`)."""
-    from . import fastpath
+    from softras.kernels import draw as fastpath
     tracemalloc.start()
     try:
         fn()
@@ -362,7 +362,7 @@ def run(runs: int = 3, full: bool = False, max_triangles: int = 1_000_000, max_s
               "memory": "peak_mib: tracemalloc peak of one render (numpy and Python allocations, not "
                         "numba-internal ones); rss_mib: process peak RSS so far (getrusage)"}
     if out_json:
-        from .imageio import write_text_atomic
+        from softras.scene.imageio import write_text_atomic
         write_text_atomic(out_json, json.dumps(report, indent=1))
     if out_plot:
         plot(rows, out_plot)
@@ -376,7 +376,7 @@ def plot(rows: list[Row], path: str) -> None:
     import matplotlib.pyplot as plt
 
 
-    from .imageio import _write_atomic, check_writable
+    from softras.scene.imageio import _write_atomic, check_writable
     names = [n for n in dict.fromkeys(r.scene for r in rows)
              if any(r.scene == n and r.mean_error is not None for r in rows)]
     if not names:

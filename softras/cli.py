@@ -148,7 +148,7 @@ def _gl_description() -> str | None:
 
 def _check_output_file(path: str | os.PathLike) -> Path:
     """Check that an output PNG can be written, before anything is done."""
-    from softras.imageio import check_writable
+    from softras.scene.imageio import check_writable
 
     return check_writable(path)
 
@@ -173,7 +173,7 @@ def _check_output_dir(folder: str | os.PathLike) -> Path:
 def _compare(a, b, tolerance: dict):
     """softras.compare with FLIP (b is the reference); a shape mismatch or a
     missing flip-evaluator becomes a CLIError."""
-    from softras.metrics import FlipUnavailable, ShapeMismatch, compare
+    from softras.verification.metrics import FlipUnavailable, ShapeMismatch, compare
 
     try:
         return compare(a, b, flip=True, **tolerance)
@@ -190,8 +190,8 @@ def _map_outputs(args: argparse.Namespace) -> dict:
 
 def _write_maps(result, targets: dict) -> list[Path]:
     """Write the difference heat map, SSIM map and FLIP map asked for; returns the paths."""
-    from softras.imageio import write_png_atomic
-    from softras.metrics import error_map_image
+    from softras.scene.imageio import write_png_atomic
+    from softras.verification.metrics import error_map_image
 
     pictures = {"diff": lambda: result.diff_image, "ssim": lambda: error_map_image(1.0 - result.ssim_map),
                 "flip": lambda: error_map_image(result.flip_map)}
@@ -232,7 +232,7 @@ def _report(result, *, as_json: bool, header: list[str], extra: dict, outputs: l
 
 def cmd_render(args: argparse.Namespace) -> int:
     """``softras render SCENE -o OUT.png``: render one scene with one backend."""
-    from softras.imageio import to_uint8, write_png_atomic
+    from softras.scene.imageio import to_uint8, write_png_atomic
 
     if args.backend == "gl" and args.precision is not None:
         raise CLIError("--precision applies to --backend soft only")
@@ -261,7 +261,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | None) -> int:
     """Render a scene with both backends and compare (compare SCENE, demo)."""
-    from softras.imageio import to_uint8, write_png_atomic
+    from softras.scene.imageio import to_uint8, write_png_atomic
 
     scene = _load_scene(scene_path)
     targets = _map_outputs(args)
@@ -271,7 +271,7 @@ def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | Non
     gl, gl_seconds = _render(scene, "gl", None, args.samples)
     soft, soft_seconds = _render(scene, "soft", args.precision, args.samples)
     gl_name = _gl_description()
-    from softras.verifier import scene_tolerance
+    from softras.verification.verifier import scene_tolerance
 
     result = _compare(soft, gl, _tolerance(args, scene_tolerance(scene_path, scene)[0]))
 
@@ -300,7 +300,7 @@ def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | Non
 
 def _compare_files(path_a: str, path_b: str, args: argparse.Namespace) -> int:
     """Compare two PNG files (compare A B)."""
-    from softras.imageio import read_png
+    from softras.scene.imageio import read_png
 
     if args.out_dir is not None:
         raise CLIError("--out-dir applies to 'softras compare SCENE' only")
@@ -340,8 +340,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def _write_golden_failure(folder: Path, result) -> Path:
     """Write golden / gl / soft images and diff heat maps of a failed scene."""
-    from softras.imageio import write_png_atomic
-    from softras.metrics import compare
+    from softras.scene.imageio import write_png_atomic
+    from softras.verification.metrics import compare
 
     target = folder / Path(result.golden).stem
     target.mkdir(parents=True, exist_ok=True)
@@ -357,7 +357,7 @@ def _write_golden_failure(folder: Path, result) -> Path:
 
 def cmd_golden(args: argparse.Namespace) -> int:
     """``softras golden [--update] [PATH ...]``: verify or rewrite the golden images."""
-    from softras import golden
+    from softras.verification import golden
 
     start = time.perf_counter()
     if args.update and args.out_dir is not None:
@@ -438,7 +438,7 @@ def _fraction(low: float, high: float):
 
 def _add_render_options(parser: argparse.ArgumentParser, *, backend: bool, sampling: bool = False) -> None:
     if sampling:
-        # softras render: any sample count and pattern of softras.sampling.
+        # softras render: any sample count and pattern of softras.pipeline.sampling.
         parser.add_argument("--samples", type=int, default=None, metavar="N",
                             help="samples per pixel (default: the scene's); 1 or 4 with GL's pattern, "
                                  "up to 1024 with --pattern")
@@ -488,7 +488,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise CLIError("bench: need --runs >= 1, --max-triangles >= 1000, 256 <= --max-side <= 2048")
     for path in (args.json_path, args.plot_path):
         if path:
-            from softras.imageio import check_writable
+            from softras.scene.imageio import check_writable
             check_writable(path)
     description = _gl_description()
     if description is None:
@@ -501,7 +501,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def _pixel(text: str) -> tuple[int, int]:
     """argparse type for ``--pixel X,Y`` (image coordinates, row 0 = top)."""
-    from softras.explain import parse_pixel
+    from softras.verification.explain import parse_pixel
 
     try:
         return parse_pixel(text)
@@ -511,8 +511,8 @@ def _pixel(text: str) -> tuple[int, int]:
 
 def cmd_explain(args: argparse.Namespace) -> int:
     """``softras explain SCENE --pixel X,Y``: one pixel's history, beside glref's value."""
-    from softras import explain
-    from softras.pipeline import render_scene
+    from softras.verification import explain
+    from softras.renderer import render_scene
 
     scene = _load_scene(args.scene)
     x, y = args.pixel
@@ -545,7 +545,7 @@ def cmd_explain(args: argparse.Namespace) -> int:
 def cmd_conformance(args: argparse.Namespace) -> int:
     """``softras conformance [PATH ...]``: every scene through both renderers, a verdict each.
 
-    The scenes run in supervised worker processes (:mod:`softras.runner`).
+    The scenes run in supervised worker processes (:mod:`softras.verification.runner`).
     Exit 0 when every scene passes, has a quality warning or is not
     supported by the GL (with --baseline: when the results match it), 1 when
     any fails, crashes or times out (with --baseline: a new failure or an
@@ -558,7 +558,7 @@ def cmd_conformance(args: argparse.Namespace) -> int:
     """
     from datetime import datetime, timezone
 
-    from softras import conformance, golden, runner
+    from softras.verification import conformance, golden, runner
     from softras.scene import SceneError, load_scene
 
     if args.jobs < 1:
@@ -614,7 +614,7 @@ def cmd_conformance(args: argparse.Namespace) -> int:
     jobs = min(args.jobs, max(len(paths) - len(done), 1))
     shard_text = f", shard {args.shard}" if args.shard else ""
     capabilities = glref.info()
-    from softras.verifier import choose_profile
+    from softras.verification.verifier import choose_profile
 
     profile_text = args.profile if args.profile != "auto" else f"auto: {choose_profile('auto', capabilities)}"
     resumed = f", {len(done)} done before (--resume)" if args.resume else ""
@@ -655,7 +655,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         info = glref.info()
     except glref.GLUnavailable as error:
         raise CLIError(f"OpenGL unavailable: {_one_line(error)}") from None
-    from softras.verifier import choose_profile
+    from softras.verification.verifier import choose_profile
 
     info = info | {"profile_auto": choose_profile("auto", info)}
     if args.json:
@@ -675,7 +675,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def _read_picture(path: str, name: str):
     """A PNG or .npy picture for verify, bad input as CLIError."""
-    from softras.imageio import read_png
+    from softras.scene.imageio import read_png
 
     if path.endswith(".npy"):
         try:
@@ -689,8 +689,8 @@ def _read_picture(path: str, name: str):
 
 def cmd_verify(args: argparse.Namespace) -> int:
     """``softras verify SCENE IMAGE REFERENCE``: judge a picture against GL's (exit 0 pass/warning, 1 fail)."""
-    from softras import verifier
-    from softras.imageio import write_png_atomic
+    from softras.verification import verifier
+    from softras.scene.imageio import write_png_atomic
 
     scene = _load_scene(args.scene)
     image = _read_picture(args.image, "image")
@@ -768,7 +768,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_render_options(render, backend=True, sampling=True)
     render.add_argument("--texture-filter", choices=("ripmap", "ewa"), default=None,
                         help="soft only: filter every texture with a ripmap or EWA (Heckbert) "
-                             "instead of its min filter (softras.texture_beyond)")
+                             "instead of its min filter (softras.pipeline.texture_beyond)")
     render.set_defaults(func=cmd_render)
 
     compare = commands.add_parser(
@@ -971,7 +971,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.gl_device is not None:
         os.environ["SOFTRAS_GL_DEVICE"] = args.gl_device   # glref.DEVICE_ENV; workers inherit it
 
-    from softras.imageio import ImageError
+    from softras.scene.imageio import ImageError
 
     try:
         return args.func(args)

@@ -24,7 +24,7 @@ import pytest
 
 import softras
 from softras import cli
-from softras.imageio import ImageError, write_png_atomic
+from softras.scene.imageio import ImageError, write_png_atomic
 from softras.scene import SceneError
 
 OLD_OUTPUT = b"previous output, must survive"

@@ -3,7 +3,7 @@
 Mesa 22.3 llvmpipe blends an RGBA8 buffer in 8-bit integers: the float32
 fragment colour becomes bytes (float32 ``c * 255``, rounded half to even),
 factors multiply with lp_build_mul_norm's ``(t + (t >> 8) + 0x80) >> 8``
-and the equations saturate (`softras.ops.blend_unorm8`).  These tests count
+and the equations saturate (`softras.pipeline.ops.blend_unorm8`).  These tests count
 the pixels where softras and glref differ -- every one is a failure.
 
 The random test isolates the blend: every pixel is its own quad of one

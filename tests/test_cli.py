@@ -1,4 +1,4 @@
-"""Tests for the softras command line (softras.cli) and PNG I/O (softras.imageio).
+"""Tests for the softras command line (softras.cli) and PNG I/O (softras.scene.imageio).
 
 Most tests run ``main([...])`` in-process. Exit statuses follow DESIGN.md
 section 6: 0 success/pass, 1 comparison failed, 2 bad input or environment
@@ -16,7 +16,7 @@ import pytest
 from PIL import Image
 
 from softras.cli import main
-from softras.imageio import ImageError, read_png, write_png_atomic
+from softras.scene.imageio import ImageError, read_png, write_png_atomic
 
 # A small valid scene (format version 1): one coloured triangle.
 TRIANGLE_SCENE = {
@@ -373,7 +373,7 @@ def test_demo_missing_scene(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------------------
-# softras.imageio
+# softras.scene.imageio
 
 
 def test_read_png_expands_rgb_and_grey(tmp_path):

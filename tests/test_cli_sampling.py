@@ -8,7 +8,7 @@ import pytest
 
 import softras
 from softras.cli import main
-from softras.imageio import read_png
+from softras.scene.imageio import read_png
 
 SCENE = {
     "softras_scene": 1, "width": 16, "height": 12, "background": [0, 0, 0, 1],

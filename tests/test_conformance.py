@@ -1,5 +1,5 @@
-"""Tests for the conformance run (softras.conformance, softras.report,
-softras.ambiguity) and ``softras conformance``.
+"""Tests for the conformance run (softras.verification.conformance, softras.verification.report,
+softras.verification.ambiguity) and ``softras conformance``.
 
 Scenes are tiny dicts in pixel units written to tmp_path, plus
 scenes/lit_textured_sphere.json, whose softras and GL pictures differ by a
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 import softras
-from softras import ambiguity, conformance
+from softras.verification import ambiguity, conformance
 from softras.cli import main
-from softras.conformance import FAIL, PASS, WARN
+from softras.verification.conformance import FAIL, PASS, WARN
 
 from conftest import SCENES
 
@@ -384,7 +384,7 @@ def test_report_files_parse_without_gl(tmp_path):
         conformance.SceneResult(name="bad", path="bad.json", verdict=FAIL, reasons=["error: <boom> & more"]),
         conformance.SceneResult(name="meh", path="meh.json", verdict=WARN, reasons=["ambiguous"]),
     ]
-    from softras.report import write_report
+    from softras.verification.report import write_report
 
     index = write_report(tmp_path, results, {"seconds": 1.5, "jobs": 1, "gl_renderer": "test"})
     page = index.read_text()

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 import glref
-from softras import conformance, verifier
+from softras.verification import conformance, verifier
 from softras.scene import scene_files
 
 from conftest import REPO, SCENES

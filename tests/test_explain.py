@@ -1,4 +1,4 @@
-"""Tests for `softras explain`: a pixel's history through every stage (softras.explain).
+"""Tests for `softras explain`: a pixel's history through every stage (softras.verification.explain).
 
 The contract: the explained final value IS softras's rendered pixel (checked
 on a grid of pixels and on edge pixels of scenes with edges, textures,
@@ -17,7 +17,7 @@ import pytest
 
 import softras
 from softras.cli import main
-from softras.explain import explain_pixel, format_text
+from softras.verification.explain import explain_pixel, format_text
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 
@@ -291,7 +291,7 @@ def test_cli_bad_scene(tmp_path, capsys):
 
 def test_cli_without_gl_still_prints_the_history(tmp_path, capsys, monkeypatch):
     import glref
-    from softras import explain
+    from softras.verification import explain
 
     def no_gl(*args, **kwargs):
         raise glref.GLUnavailable("no EGL display (test)")

@@ -23,7 +23,7 @@ import pytest
 
 import softras
 from conftest import REPO, SCENES
-from softras import clip as clip_stage
+from softras.pipeline import clip as clip_stage
 
 _spec = importlib.util.spec_from_file_location("make_extreme_scenes", REPO / "scripts" / "make_extreme_scenes.py")
 make = importlib.util.module_from_spec(_spec)
@@ -339,7 +339,7 @@ def test_magnification_by_1000(render):
     four texels around (1.5, 0.5), within 2/255 (gl: 1/256-texel steps)."""
     scene = load("texture_magnify")
     image = render(scene).astype(int)
-    from softras import texture
+    from softras.pipeline import texture
     texels = texture.prepare(scene.textures["linear"]).levels[0].astype(float)   # (4, 4, 4) premultiplied
     size = 4
     u = make.MAGNIFY_NEAREST_UV0[0] + (np.arange(64) + 0.5) / make.MAGNIFY

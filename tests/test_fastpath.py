@@ -1,8 +1,8 @@
-"""The gl fast path (softras.fastpath) returns the general pipeline's bytes exactly.
+"""The gl fast path (softras.kernels.draw) returns the general pipeline's bytes exactly.
 
 Every scene in scenes/ is rendered at its own sample count and at 4x MSAA
 through both paths (``fast_path=False`` forces the stages of
-softras.pipeline); scenes the fast path does not support must say why.
+softras.pipeline.render); scenes the fast path does not support must say why.
 Seeded random scenes add what the conformance scenes do not stress: many
 overlapping triangles with every depth function and blend mode, triangles
 crossing every clip plane, both windings with culling, and textures with
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 import softras
-from softras import fastpath
-from softras.pipeline import render_scene
+from softras.kernels import draw as fastpath
+from softras.renderer import render_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
 
@@ -140,7 +140,7 @@ def test_random_lane_filtered_scenes_are_bit_identical(seed, samples):
     llvmpipe's fixed-point wraps (mirrored_repeat filters in float: the scalar path)."""
     scene = softras.load_scene(random_scene(200 + seed, vectorised=True))
     for name, tex in scene.textures.items():
-        params = fastpath.texture_tables(softras.texture.prepare(tex), True)[0]
+        params = fastpath.texture_tables(softras.pipeline.texture.prepare(tex), True)[0]
         assert params[fastpath._T_VEC] == 1, name
     assert_same(*both_paths(scene, samples=samples), f"random lane-filtered scene seed {200 + seed}")
 
@@ -176,7 +176,7 @@ def test_bench_floor_is_bit_identical(samples):
 def test_branch_free_wrap_equals_wrap_index():
     """`_wrap_select` (lanes) = `texture.wrap_index` for power-of-two sizes in
     every mode, and for any size with clamp_to_edge."""
-    from softras.texture import WRAP_CODES, wrap_index
+    from softras.pipeline.texture import WRAP_CODES, wrap_index
     indices = list(range(-70, 70)) + [-2**40 - 3, 2**40 + 5, -2**62, 2**62 - 1]
     for mode in WRAP_CODES.values():
         for size in (1, 2, 4, 8, 64, 4096) + ((3, 7, 13, 100) if mode == WRAP_CODES["clamp_to_edge"] else ()):
@@ -188,7 +188,7 @@ def test_plain_colors_give_the_texel_bytes():
     """`plain_colors`: the fragment colour of white corners, (w0 + w1 + w2)^2 k/255
     (alpha (w0 + w1 + w2) k/255) through `ops.unorm8`, is the texel byte k for
     every k when the weights' sum is 1 within far more than a few ulp."""
-    from softras.ops import unorm8
+    from softras.pipeline.ops import unorm8
     k = np.arange(256)
     for sum_of_weights in 1 + np.array([0.0, 1e-12, -1e-12, 2.0**-52, -2.0**-53, 7 * 2.0**-52, -9 * 2.0**-53]):
         for value in (sum_of_weights * sum_of_weights * (k / 255.0), sum_of_weights * (k / 255.0)):
@@ -214,7 +214,7 @@ def test_frexp32_equals_math_frexp():
 def test_quad_lod_equals_choose_levels():
     """`_quad_lod` (selects, bit tricks) = `texture.choose_levels` (gl) on random
     derivatives over 50 octaves, zero, subnormal, huge, inf and NaN ones."""
-    from softras import texture
+    from softras.pipeline import texture
     rng = np.random.default_rng(4)
     specials = np.float32([0, 1e-42, 1e-20, 1 / 256, 1, 3e19, 3e38, np.inf, -np.inf, np.nan])
     d = (rng.standard_normal((3000, 4)) * 2.0 ** rng.integers(-30, 20, (3000, 1))).astype(np.float32)
@@ -240,7 +240,7 @@ def test_word_blend_equals_the_per_channel_blend():
     """`_blend_word` (spread lanes for over, over_straight, add) = `ops.blend_byte`
     per channel, every mode, on random words and every alpha byte with
     extreme colour bytes."""
-    from softras.ops import blend_byte
+    from softras.pipeline.ops import blend_byte
     rng = np.random.default_rng(5)
     words = [int(w) for w in rng.integers(0, 2**32, 3000)]
     words += [(a << 24) | (c * 0x010101) for a in range(256) for c in (0, 1, 127, 254, 255)]
@@ -258,7 +258,7 @@ def test_integer_depth_test_equals_the_float_depth_test():
     """`_depth_pass_k` on the 24-bit integers k (-1 for NaN) = `ops._depth_pass`
     on the pipeline's depths k / (2^24 - 1), for every function, at the ends,
     neighbouring values and NaN on either side."""
-    from softras.ops import DEPTH_FUNCS, _depth_pass
+    from softras.pipeline.ops import DEPTH_FUNCS, _depth_pass
     scale = fastpath.DEPTH_SCALE
     ks = [-1, 0, 1, 2, 8388607, 8388608, int(scale) - 1, int(scale)]
     for func in DEPTH_FUNCS.values():
@@ -328,7 +328,8 @@ def test_reused_scratch_buffers_do_not_leak_between_renders():
 
 
 def test_texture_tables_are_cached_per_prepared_texture():
-    from softras import bench, texture
+    from softras import bench
+    from softras.pipeline import texture
     scene = softras.load_scene(bench.floor_scene(32))
     tex = texture.prepare(scene.textures["checker"])
     assert fastpath.texture_tables(tex, True) is fastpath.texture_tables(tex, True)
@@ -395,7 +396,7 @@ def counted_scene(target: int, *, seed: int, textured: bool = False, cull: str =
 
 def clip_list(scene, k):
     """`clip.triangle_list_gl` of draw k, as `fastpath.draw_triangles` calls it."""
-    from softras import clip, vertex
+    from softras.pipeline import clip, vertex
     draw = scene.draws[k]
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
     return clip.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"), draw.mesh.indices)

@@ -1,4 +1,4 @@
-"""Tests for golden images (softras.golden) and ``softras golden``.
+"""Tests for golden images (softras.verification.golden) and ``softras golden``.
 
 Scenes are tiny dicts written to tmp_path as JSON; every golden folder lives
 under tmp_path except in the last test, which verifies the repository's own
@@ -17,9 +17,9 @@ import pytest
 from PIL import Image
 
 import glref
-from softras import golden
+from softras.verification import golden
 from softras.cli import main
-from softras.imageio import read_png
+from softras.scene.imageio import read_png
 
 from conftest import write_failure_images
 

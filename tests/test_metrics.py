@@ -1,11 +1,11 @@
-"""Tests for softras.metrics: compare(), Comparison and the difference heat map."""
+"""Tests for softras.verification.metrics: compare(), Comparison and the difference heat map."""
 
 import json
 
 import numpy as np
 import pytest
 
-from softras.metrics import Comparison, ShapeMismatch, compare, diff_heatmap
+from softras.verification.metrics import Comparison, ShapeMismatch, compare, diff_heatmap
 
 
 def random_image(height=24, width=32, seed=0):
@@ -143,7 +143,7 @@ def test_rgb_and_grey_images_accepted():
 
 
 def test_paths_are_read(tmp_path):
-    from softras.imageio import write_png_atomic
+    from softras.scene.imageio import write_png_atomic
 
     a = random_image()
     write_png_atomic(tmp_path / "a.png", a)

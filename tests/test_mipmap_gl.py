@@ -1,9 +1,9 @@
 """softras's mip chain against GL's glGenerateMipmap, read back level by level.
 
 glref uploads level 0 and lets GL generate the rest, so what softras samples
-at levels >= 1 is only GL's texels if `softras.texels.mip_chain` makes the
+at levels >= 1 is only GL's texels if `softras.scene.texels.mip_chain` makes the
 same bytes.  On Mesa llvmpipe it must, byte for byte (the reduction is a
-bilinear blit in 8.8 fixed point: `softras.texels.llvmpipe_blit_coordinates`).
+bilinear blit in 8.8 fixed point: `softras.scene.texels.llvmpipe_blit_coordinates`).
 Other GL implementations generate differently (the GL specification
 requires no particular filter), so the comparison runs on llvmpipe only.
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from softras import texels
+from softras.scene import texels
 
 # Every size in 1..20 x 1..20 (POT, NPOT, odd, 1xN and Nx1, 1x1), the
 # examples of the task, and sizes where a detail of llvmpipe's arithmetic

@@ -14,7 +14,7 @@ import pytest
 
 import glref
 import softras
-from softras import texels
+from softras.scene import texels
 from softras.scene import load_scene
 
 pytestmark = pytest.mark.gl
@@ -122,7 +122,7 @@ def test_depth_is_rounded_to_nearest_at_24_bits():
     and the planes have slope 0, so no interpolation error enters: near other
     depths llvmpipe's float32 plane and double rounding part from the exact
     rounding softras models; docs/testing.md.)"""
-    from softras.pipeline import render_scene
+    from softras.renderer import render_scene
     columns, width, height = 16, 8, 8
     ks = [(1 << 21) + 131071 * j + 5 * j for j in range(columns)]
     assert all((1 << 21) <= k < (1 << 22) for k in ks)
@@ -164,8 +164,8 @@ PERSPECTIVE = np.array([[1, 0, 0, 0], [0, 1, 0, 0],
 def _stage_fragments(clip, width, height):
     """(triangle, x, GL row) of the pixels the triangles (n, 3, 4), clip space,
     cover through the readable clip, setup and rasterize stages (one sample)."""
-    from softras import rasterize, setup
-    from softras.clip import clip_triangles
+    from softras.pipeline import rasterize, setup
+    from softras.pipeline.clip import clip_triangles
     n = len(clip)
     offsets, unit = setup.sample_offsets(np.array([[0.5, 0.5]]), "gl")
     clipped = clip_triangles(clip.reshape(-1, 4), np.arange(3 * n).reshape(n, 3), precision="gl")
@@ -200,8 +200,8 @@ def test_vertex_shader_sums_the_matrix_columns_in_order_like_gl():
     GL covers exactly what the left-to-right sum covers, the other order
     differs from GL on each, and both of softras's renderers match GL's
     picture exactly."""
-    from softras import vertex
-    from softras.pipeline import render_scene
+    from softras.pipeline import vertex
+    from softras.renderer import render_scene
 
     width, height, n = 999, 601, 1000
     rng = np.random.default_rng(20261123)

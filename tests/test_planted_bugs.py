@@ -94,7 +94,7 @@ def test_consistent_fill_rule_swap_is_not_failed_under_spec(rows, scene):
 
 
 def test_patches_are_undone():
-    from softras import interpolate, setup
+    from softras.pipeline import interpolate, setup
 
     before = (setup.setup_triangles, interpolate.perspective_weights)
     for patch in (pb.fill_rule_swapped, pb.fill_rule_ties_excluded, pb.perspective_off):

@@ -17,7 +17,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from softras import rasterize, setup
+from softras.pipeline import rasterize, setup
 
 SIZE = 64
 AMBIGUITY_PX = 1 / 256

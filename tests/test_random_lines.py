@@ -5,7 +5,7 @@ additive blending, line k adding 2^(k mod 8)/255 to channel k // 8, so one
 image holds 24 independent coverage masks.  Positions are given in clip
 space (identity camera), so both renderers see the same float32 vertices.
 softras's side goes through the line stage's own functions (vertex ->
-`softras.lines.line_fragments`: clip, viewport, rasterize), independent of
+`softras.pipeline.lines.line_fragments`: clip, viewport, rasterize), independent of
 the pipeline's wiring.
 
 Every kind of line: end points on pixel centres, on pixel corners, on a
@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import softras
-from softras import lines, ops, vertex
+from softras.pipeline import lines, ops, vertex
 
 PER_PASS = 24
 LINES_PER_KIND = 240            # per viewport size: 14 kinds x 2 sizes x 240 = 6720 lines
@@ -112,7 +112,7 @@ def draw_clip(scene, draw) -> np.ndarray:
 
 
 def soft_coverage(scene: dict, positions=None) -> np.ndarray:
-    """(n, H, W) covered-sample counts of each draw, through softras.lines."""
+    """(n, H, W) covered-sample counts of each draw, through softras.pipeline.lines."""
     scene = softras.load_scene(scene)
     out = np.zeros((len(scene.draws), scene.height, scene.width), int)
     for k, draw in enumerate(scene.draws):
@@ -210,7 +210,7 @@ def star_scene() -> dict:
 
 
 def render_line_scene(scene) -> np.ndarray:
-    """A scene of line draws through softras.lines and softras.ops (gl precision)."""
+    """A scene of line draws through softras.pipeline.lines and softras.pipeline.ops (gl precision)."""
     scene = softras.load_scene(scene)
     positions = MSAA4 if scene.samples == 4 else np.array([[0.5, 0.5]])
     color, depth = ops.new_framebuffer(scene.width, scene.height, len(positions), scene.background, quantize=True)
@@ -265,9 +265,9 @@ def test_line_colours_identical_to_llvmpipe():
 def test_msaa_star_within_resolve_rounding_of_llvmpipe():
     """4x MSAA: llvmpipe evaluates MSAA line attributes half a pixel up and
     right (colours at (x + 1, y + 1), depth at each sample + (0.5, 0.5)),
-    which softras.lines reproduces; without that the star is up to 14/255
+    which softras.pipeline.lines reproduces; without that the star is up to 14/255
     off.  What is left is the resolve's rounding of partly covered pixels
-    (llvmpipe averages float32 samples, softras.ops rounds the exact mean):
+    (llvmpipe averages float32 samples, softras.pipeline.ops rounds the exact mean):
     at most 1/255."""
     scene = star_scene()
     scene["samples"] = 4

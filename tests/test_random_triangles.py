@@ -13,10 +13,10 @@ every triangle of a pass:
 
 Each pass is compared with GL three ways, every one on its own:
 
-- the fast path (`softras.render`, softras.fastpath's fused kernel): each
+- the fast path (`softras.render`, softras.kernels.draw's fused kernel): each
   triangle's covered samples per pixel, decoded from its image;
 - the readable stages, batched over the pass (`stage_image`: the
-  functions softras.pipeline's general path calls, softras.vertex.to_clip
+  functions softras.pipeline.render's general path calls, softras.pipeline.vertex.to_clip
   -> clip.clip_triangles -> setup.setup_triangles -> rasterize.rasterize):
   each triangle's covered samples per pixel, encoded like the images;
 - every `RENDER_SCENE_EVERY`-th pass end to end through the stages
@@ -44,9 +44,9 @@ import numpy as np
 import pytest
 
 import softras
-from softras import clip, rasterize, setup, vertex
-from softras.pipeline import render_scene
-from softras.sampling import GL_CENTER, GL_MSAA4
+from softras.pipeline import clip, rasterize, setup, vertex
+from softras.renderer import render_scene
+from softras.pipeline.sampling import GL_CENTER, GL_MSAA4
 
 PER_PASS = 24
 PER_PASS_MSAA = 9
@@ -91,7 +91,7 @@ def tie_triangles(rng: np.random.Generator, n: int, width: int, height: int,
                   positions: np.ndarray) -> np.ndarray:
     """(n, 3, 2) window coordinates of triangles with samples exactly on their edges.
 
-    Built in raster units X = (x_w - 0.5) * 256 (`softras.setup.snap`): a
+    Built in raster units X = (x_w - 0.5) * 256 (`softras.pipeline.setup.snap`): a
     sample point P (pixel * 256 + a sample's offset), an edge direction d,
     end points P + i d and P - j d (i, j >= 1), so P lies strictly inside
     the edge; d is a whole-pixel step (then P + k d are samples too) or, for a

@@ -1,4 +1,4 @@
-"""Tests for the conformance runner (softras.runner) and ``softras conformance``'s
+"""Tests for the conformance runner (softras.verification.runner) and ``softras conformance``'s
 crash isolation, time limits, retries, baselines, interruption and resume.
 
 Faults are injected with the test-only SOFTRAS_TEST_FAULT variable, read in
@@ -25,9 +25,9 @@ from xml.etree import ElementTree
 import numpy as np
 import pytest
 
-from softras import runner
+from softras.verification import runner
 from softras.cli import build_parser, main
-from softras.conformance import CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, WARN, SceneResult
+from softras.verification.conformance import CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, WARN, SceneResult
 
 from conftest import REPO
 

@@ -1,4 +1,4 @@
-"""Scene loading and validation (softras.scene) and procedural meshes (softras.meshes)."""
+"""Scene loading and validation (softras.scene) and procedural meshes (softras.scene.meshes)."""
 
 import copy
 import glob
@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from softras import meshes
+from softras.scene import meshes
 from softras.scene import MAX_PIXELS, Scene, SceneError, load_scene
 
 SCENES_DIR = os.path.join(os.path.dirname(__file__), "..", "scenes")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 import softras
-from softras.verifier import scene_tolerance
+from softras.verification.verifier import scene_tolerance
 from conftest import SCENES, write_failure_images
 
 SCENE_FILES = sorted(p for p in SCENES.glob("*.json"))
@@ -57,7 +57,7 @@ def test_exact_precision_close_to_gl_precision(path):
     if any(t.max_anisotropy >= 2 for t in scene.textures.values()):
         # Two different anisotropic filters: exact averages the EXT spec's
         # probes, gl reproduces llvmpipe's EWA on one mip level
-        # (softras.texture).  Seen on the grazing floor: up to 64/255, SSIM
+        # (softras.pipeline.texture).  Seen on the grazing floor: up to 64/255, SSIM
         # 0.984; each is checked against its own reference elsewhere (glref;
         # tests/stages/test_texture.py).
         threshold, min_ssim = 64, 0.98

@@ -1,4 +1,4 @@
-"""Texture lookup bounds (softras.texture_bounds): what any conformant GL may return.
+"""Texture lookup bounds (softras.pipeline.texture_bounds): what any conformant GL may return.
 
 Unit tests: the bounds contain softras's llvmpipe-precision and exact-precision
 lookups for every filter / wrap pair, they are tight where GL leaves no room,
@@ -29,9 +29,11 @@ import pytest
 
 import softras
 from conftest import REPO, SCENES
-from softras import ambiguity, interpolate, texels, texture
-from softras import texture_bounds as tb
-from softras.pipeline import render_scene
+from softras.verification import ambiguity
+from softras.pipeline import interpolate, texture
+from softras.scene import texels
+from softras.pipeline import texture_bounds as tb
+from softras.renderer import render_scene
 
 MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
                "nearest_mipmap_linear", "linear_mipmap_linear")
@@ -306,7 +308,7 @@ def scene_envelope(scene):
 
 def coverage_edges(scene):
     """(H, W) bool: pixels whose visible primitive changes between softras's
-    gl and exact renders or under a 1/256-pixel move (`softras.ambiguity`)."""
+    gl and exact renders or under a 1/256-pixel move (`softras.verification.ambiguity`)."""
     ids = ambiguity.id_scene(scene)
     base = ambiguity.decode_ids(render_scene(ids, precision="gl"), scene)[0]
     edge = ambiguity.decode_ids(render_scene(ids, precision="exact"), scene)[0] != base

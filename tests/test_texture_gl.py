@@ -1,6 +1,6 @@
 """Texture sampling against OpenGL (glref): level choice and every filter/wrap pair.
 
-The level test gives every mip level its own solid colour (softras.texels's
+The level test gives every mip level its own solid colour (softras.scene.texels's
 mip chain is replaced for the test, and glref uploads that chain,
 ``mipmaps="upload"``, instead of generating the levels), so the colour of a
 pixel says which level the sampler chose.
@@ -17,7 +17,8 @@ import pytest
 import glref
 import softras
 from conftest import SCENES, write_failure_images
-from softras import texels, texture
+from softras.scene import texels
+from softras.pipeline import texture
 
 PALETTE = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 0], [255, 0, 255],
                     [0, 255, 255], [255, 255, 255], [128, 128, 128], [128, 0, 0]], np.uint8)

@@ -1,4 +1,4 @@
-"""Tests for the verifier (softras.verifier, softras.verify, softras verify / info)
+"""Tests for the verifier (softras.verification.verifier, softras.verify, softras verify / info)
 and glref's capability record and NOT SUPPORTED.
 
 Spec-profile tests judge softras's picture of a scene against glref's on this
@@ -19,9 +19,9 @@ import pytest
 
 import glref
 import softras
-from softras import conformance, verifier
+from softras.verification import conformance, verifier
 from softras.cli import main
-from softras.pipeline import render_scene
+from softras.renderer import render_scene
 
 from conftest import SCENES
 
@@ -212,7 +212,7 @@ def test_conformance_gives_not_supported(monkeypatch):
 
 @pytest.mark.gl
 def test_cli_verify_exit_codes_and_bound_images(tmp_path, capsys):
-    from softras.imageio import write_png_atomic
+    from softras.scene.imageio import write_png_atomic
 
     scene_path = tmp_path / "pair.json"
     scene_path.write_text(json.dumps(TRIANGLES))

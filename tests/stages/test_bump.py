@@ -1,12 +1,13 @@
-"""Normal, bump and displacement mapping: tangent frames (softras.meshes),
-perturbed normals (softras.fragment), displacement (softras.displace)."""
+"""Normal, bump and displacement mapping: tangent frames (softras.scene.meshes),
+perturbed normals (softras.pipeline.fragment), displacement (softras.scene.displace)."""
 
 import numpy as np
 import pytest
 
-from softras import displace, fragment, meshes, vertex
-from softras.texels import mip_chain
-from softras.texture import MipTexture
+from softras.scene import displace, meshes
+from softras.pipeline import fragment, vertex
+from softras.scene.texels import mip_chain
+from softras.pipeline.texture import MipTexture
 
 
 def height_texture(heights: np.ndarray, wrap: str = "clamp_to_edge", min_filter: str = "linear") -> MipTexture:
@@ -187,7 +188,7 @@ def test_displaced_ramp_tilts_the_recomputed_normals():
 
 
 def test_bumps_procedural_heights_by_hand():
-    from softras.texels import procedural_texels
+    from softras.scene.texels import procedural_texels
     texels = procedural_texels("bumps", (8, 8), {"cells": 2})
     assert texels.shape == (8, 8, 4) and (texels[..., 3] == 255).all()
     np.testing.assert_array_equal(texels[..., 0], texels[..., 1])

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from softras import rasterize, setup
-from softras.clip import FRUSTUM_PLANES, clip_polygon, clip_triangles, plane_distances, triangle_list_gl
+from softras.pipeline import rasterize, setup
+from softras.pipeline.clip import FRUSTUM_PLANES, clip_polygon, clip_triangles, plane_distances, triangle_list_gl
 
 
 def _tri(*points):
@@ -215,8 +215,8 @@ def test_viewport_transform_is_fused_for_input_vertices_unfused_for_new_ones_lik
     softras does, the other form differs from GL on each, and the fast path
     and render_scene(fast_path=False) draw them as GL."""
     import softras
-    from softras import vertex
-    from softras.pipeline import render_scene
+    from softras.pipeline import vertex
+    from softras.renderer import render_scene
 
     width, height, n = 999, 601, 10000 if vertices == "new" else 3000
     rng = np.random.default_rng(20261125)

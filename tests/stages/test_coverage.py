@@ -1,9 +1,9 @@
-"""Exact analytic area coverage (softras.coverage), checked by hand."""
+"""Exact analytic area coverage (softras.pipeline.coverage), checked by hand."""
 
 import numpy as np
 import pytest
 
-from softras import coverage, sampling
+from softras.pipeline import coverage, sampling
 
 
 def test_half_pixel_triangle_covers_one_half():

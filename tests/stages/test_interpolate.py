@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from softras import interpolate, setup
+from softras.pipeline import interpolate, setup
 
 
 def test_lecture_worked_example():

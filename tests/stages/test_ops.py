@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from softras import ops
+from softras.pipeline import ops
 
 
 def _apply(z, stored, func, write=True, blend="none", src=(1, 0, 0, 1), dst=(0, 0, 1, 1)):

@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from softras import rasterize, setup
+from softras.pipeline import rasterize, setup
 
 
 def _cover(window_tris, width, height, precision="gl", positions=((0.5, 0.5),)):

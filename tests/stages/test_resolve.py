@@ -1,4 +1,4 @@
-"""Resolve filters (softras.ops.resolve): box, tent, llvmpipe's float32 box; float output.
+"""Resolve filters (softras.pipeline.ops.resolve): box, tent, llvmpipe's float32 box; float output.
 
 The GL tests check the llvmpipe arithmetic and the rgba32f framebuffer against
 glref (Mesa llvmpipe) on the MSAA and blend scenes.
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import softras
-from softras import ops, sampling
+from softras.pipeline import ops, sampling
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 

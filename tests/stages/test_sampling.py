@@ -1,10 +1,10 @@
-"""Sample patterns (softras.sampling) and rendering with more than 32 samples."""
+"""Sample patterns (softras.pipeline.sampling) and rendering with more than 32 samples."""
 
 import numpy as np
 import pytest
 
 import softras
-from softras import coverage, pipeline, sampling
+from softras.pipeline import coverage, render as pipeline, sampling
 
 SQUARE = [(1, "grid"), (4, "grid"), (9, "rotated_grid"), (16, "jittered"), (1024, "grid"),
           (1024, "rotated_grid"), (1024, "jittered")]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from softras import setup
+from softras.pipeline import setup
 
 ONE_SAMPLE = setup.sample_offsets(np.array([[0.5, 0.5]]), "gl")
 

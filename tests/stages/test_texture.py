@@ -1,4 +1,4 @@
-"""Texture stage: texels, mip chains, wrap, LOD and filter weights (softras.texture).
+"""Texture stage: texels, mip chains, wrap, LOD and filter weights (softras.pipeline.texture).
 
 Hand-computed values; the comparison with OpenGL is in tests/test_texture_gl.py.
 """
@@ -6,7 +6,8 @@ Hand-computed values; the comparison with OpenGL is in tests/test_texture_gl.py.
 import numpy as np
 import pytest
 
-from softras import texels, texture
+from softras.scene import texels
+from softras.pipeline import texture
 
 
 # --------------------------------------------------------------------------- texels and mips

@@ -1,4 +1,4 @@
-"""Filters beyond GL (softras.texture_beyond): ripmaps, EWA, the supersampled
+"""Filters beyond GL (softras.pipeline.texture_beyond): ripmaps, EWA, the supersampled
 ground truth they are judged against, and the cost table.
 
 GL has no ripmap or EWA, so besides hand-computed cases these filters are
@@ -14,7 +14,9 @@ import pytest
 
 import softras
 from conftest import SCENES
-from softras import texels, texture, texture_beyond
+from softras.scene import texels
+from softras.pipeline import texture, texture_beyond
+from softras.verification import ground_truth
 
 
 def _tex(level0, min_filter="linear_mipmap_linear", wrap="repeat"):
@@ -155,12 +157,12 @@ def test_ripmap_and_ewa_beat_trilinear_against_the_supersampled_ground_truth():
     closer to it than trilinear (RMSE and mean abs error), trilinear closer
     than bilinear without mipmaps.  Deterministic: no randomness involved."""
     scene = _small_floor()
-    reference = texture_beyond.supersampled_reference(scene, factor=16)
-    errors = {name: texture_beyond.errors_against(reference, softras.render(scene, precision="exact",
+    reference = ground_truth.supersampled_reference(scene, factor=16)
+    errors = {name: ground_truth.errors_against(reference, softras.render(scene, precision="exact",
                                                                            texture_filter=name))
               for name in ("ripmap", "ewa")}
-    errors["trilinear"] = texture_beyond.errors_against(reference, softras.render(scene, precision="exact"))
-    errors["bilinear"] = texture_beyond.errors_against(
+    errors["trilinear"] = ground_truth.errors_against(reference, softras.render(scene, precision="exact"))
+    errors["bilinear"] = ground_truth.errors_against(
         reference, softras.render(_small_floor("linear"), precision="exact"))
     for name in ("ripmap", "ewa"):
         for measure in ("rmse", "mean_abs"):
@@ -172,7 +174,7 @@ def test_supersampled_reference_of_a_flat_colour():
     """A 1-sample-per-texel constant texture: the reference is the colour
     where the floor is, the background elsewhere; values in [0, 1]."""
     scene = _small_floor()
-    reference = texture_beyond.supersampled_reference(scene, factor=2)
+    reference = ground_truth.supersampled_reference(scene, factor=2)
     assert reference.shape == (36, 48, 4)
     assert reference.min() >= 0 and reference.max() <= 1
     np.testing.assert_allclose(reference[0, 0, :3], np.rint(np.array([0.1, 0.1, 0.2]) * 255) / 255)

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from softras import vertex
+from softras.pipeline import vertex
 
 
 def test_identity_matrix_keeps_positions_exactly():

@@ -1,6 +1,6 @@
 """Texture lookup bounds: what ANY conformant GL implementation may return.
 
-softras's own sampler (`softras.texture`) reproduces one implementation
+softras's own sampler (`softras.pipeline.texture`) reproduces one implementation
 (llvmpipe) or the spec's formulas in exact arithmetic.  The spec leaves a
 texture lookup room: how the scale factor rho is approximated, where the
 derivatives are taken, the precision of lambda, of the texel coordinates and
@@ -16,7 +16,7 @@ here the range itself is computed (its per-channel min and max).
 
 Coordinate spaces
 -----------------
-(s, t) : normalized texture coordinates, as in `softras.texture`.
+(s, t) : normalized texture coordinates, as in `softras.pipeline.texture`.
 (u, v) : texel coordinates of a level, ``u = s W_l``, ``v = t H_l``; texel
     (i, j) has its centre at (i + 1/2, j + 1/2).  Level-0 texels for rho.
 Derivatives : d(s, t)/dx and d(s, t)/dy per window pixel (GL window space).
@@ -77,7 +77,7 @@ The room GL allows, and the figure used for each
    crosses at most one centre line per axis).  A box 1 texel or wider (|s|
    near 2^20 / W) gets the whole level's range.  Wrap modes (repeat,
    clamp_to_edge, mirrored_repeat) as section 8.14.2, through
-   `softras.texture.wrap`.
+   `softras.pipeline.texture.wrap`.
 7. **Filter arithmetic**: weights in exact arithmetic, then the result is
    widened by ``LookupPrecision.color_threshold`` = 1.5/255 and clipped to
    the range of the texels read.  The figure: llvmpipe's 8.8 fixed-point
@@ -116,7 +116,7 @@ variants, not a strict bound.
 
 Cost: linear filters are evaluated at 3 x 3 points (9 taps) per candidate
 level, typically 1-3 levels; with the 5 derivative candidates a bounds render
-(`softras.pipeline.render_scene(texture_bounds=...)`) takes 3-6x a stage
+(`softras.renderer.render_scene(texture_bounds=...)`) takes 3-6x a stage
 render of the textured scenes (up to 10x for the 15-level strip).
 """
 
@@ -129,8 +129,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from . import interpolate, texture
-from .texture import MipTexture
+from softras.pipeline import interpolate, texture
+from softras.pipeline.texture import MipTexture
 
 __all__ = [
     "LodPrecision", "LookupPrecision", "DerivativeCandidates", "LOG2_PIECEWISE_LINEAR_ERROR",
@@ -218,7 +218,7 @@ def fragment_derivatives(vertices: np.ndarray, inv_w: np.ndarray, x: np.ndarray,
     inv_w : (F, 3); x, y : (F,) pixels; centres : (F, 2) pixel centres;
     values : (F, 3, 2) (s, t) at the triangle's corners.  The attribute is
     evaluated at the quad's four pixel centres from the triangle's planes
-    (helper pixels included, `softras.interpolate.perspective_at`), in
+    (helper pixels included, `softras.pipeline.interpolate.perspective_at`), in
     float64.  Candidates (K = 5): (row 0, column 0) -- llvmpipe's coarse
     TR - TL, BL - TL --, (row 1, column 1), (row 0, column 1), (row 1,
     column 0) and the analytic derivative at the pixel centre.  The quad
@@ -587,7 +587,7 @@ def _anisotropic_bounds(tex, st, candidates, lam_lo, lam_hi, levels_lo, levels_h
 
 def variant_derivatives(tex: MipTexture, candidates: DerivativeCandidates, side: str,
                         precision: str = "exact", lod: LodPrecision = LOD):
-    """Derivatives that make `softras.texture.sample` use the lowest ("lo")
+    """Derivatives that make `softras.pipeline.texture.sample` use the lowest ("lo")
     or highest ("hi") permitted lambda, for normal and bump maps: their
     lighting is not monotone in the texel, so these are an envelope by
     variants, not a bound.
@@ -596,7 +596,7 @@ def variant_derivatives(tex: MipTexture, candidates: DerivativeCandidates, side:
     variants are isotropic lookups), ddx (F, 2) = (rho / W, 0) and ddy = 0
     with rho chosen so that a lookup in ``precision`` computes that lambda:
     exact: rho = 2^lambda; gl: rho^2 = the inverse of llvmpipe's
-    piecewise-linear log2 at 2 lambda (`softras.texture.fast_log2`), so the
+    piecewise-linear log2 at 2 lambda (`softras.pipeline.texture.fast_log2`), so the
     variant also has llvmpipe's fixed-point filter arithmetic.
     lambda = -inf gives zero derivatives (magnification).
     """
@@ -628,13 +628,13 @@ def generated_levels(tex: MipTexture) -> tuple[tuple, tuple]:
     GL 4.6 section 8.14.4: "No particular filter algorithm is required,
     though a box filter is recommended." The bound: level k lies between the
     rounded 2x2 box chain and llvmpipe's linear-blit chain
-    (`softras.texels.mip_chain`, both reduced from level 0), widened by k/255:
+    (`softras.scene.texels.mip_chain`, both reduced from level 0), widened by k/255:
     one rounding step per reduction (softpipe's float-weighted blit stays
     within 1/255 of llvmpipe's per step, measured in docs/textures_and_lighting.md).
     Returns (levels_lo, levels_hi): tuples of (H_l, W_l, 4) float64 on the
     0..255 scale, level 0 exact. Cached per MipTexture.
     """
-    from .texels import mip_chain
+    from softras.scene.texels import mip_chain
 
     cached = _generated.get(id(tex))
     if cached is not None and cached[0] is tex:

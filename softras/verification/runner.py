@@ -78,7 +78,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from softras.conformance import (CONFORMING, CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, VERDICT_NAMES,
+from softras.verification.conformance import (CONFORMING, CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, VERDICT_NAMES,
                                  VERDICT_ORDER, WARN, ConformanceError, SceneResult, counts)
 
 __all__ = [
@@ -359,8 +359,8 @@ def _worker_main(conn, log_path: str, profile: str) -> None:
         import glref
         from numba.core import event
 
-        from softras import ambiguity, metrics, verifier  # noqa: F401 - imported once, not per scene
-        from softras.conformance import check_scene
+        from softras.verification import ambiguity, metrics, verifier  # noqa: F401 - imported once, not per scene
+        from softras.verification.conformance import check_scene
 
         glref.info()   # the GL context, once
         event.register("numba:compile", _compile_listener(conn))
@@ -515,7 +515,7 @@ def run(paths, *, jobs: int = 1, timeout: float = DEFAULT_TIMEOUT, retries: int 
     Parameters
     ----------
     paths : list of path
-        Scene files (:func:`softras.conformance.select`).
+        Scene files (:func:`softras.verification.conformance.select`).
     jobs : int
         Worker processes, one scene each at a time (at least 1).
     timeout : float
@@ -844,7 +844,7 @@ _OPTION_FLAGS = {"profile": "--profile", "timeout": "--timeout", "retries": "--r
 
 def result_from_dict(entry: dict, folder) -> SceneResult:
     """A scene's result back from results.json, its pictures read from ``folder``."""
-    from softras.imageio import ImageError, read_png
+    from softras.scene.imageio import ImageError, read_png
 
     if entry.get("verdict") not in VERDICT_NAMES:
         raise RunnerError(f"{folder}/results.json: scene {entry.get('name')!r} has no valid verdict")
@@ -932,7 +932,7 @@ class ReportWriter:
 
     def add(self, result: SceneResult) -> None:
         """Record a finished scene and rewrite the report."""
-        from softras.report import write_scene_images
+        from softras.verification.report import write_scene_images
 
         write_scene_images(self.folder, result)
         self.results[result.path] = result
@@ -940,8 +940,8 @@ class ReportWriter:
 
     def write(self, *, interrupted: bool = False, baseline: BaselineCheck | None = None) -> Path:
         """Rewrite results.json, junit.xml, index.html and failures.csv."""
-        from softras.imageio import write_text_atomic
-        from softras.report import write_summary
+        from softras.scene.imageio import write_text_atomic
+        from softras.verification.report import write_summary
 
         ordered = self.ordered()
         pending = [path for path in self.paths if path not in self.results]
@@ -978,7 +978,7 @@ def conformance_command(paths, *, jobs: int, profile: str, profile_text: str, ti
     the run's record for results.json (``options`` among it). Prints one line
     per scene that did not pass, the baseline's findings and the counts.
     """
-    from softras.conformance import ProgressBar
+    from softras.verification.conformance import ProgressBar
 
     out = out if out is not None else sys.stdout
     err = err if err is not None else sys.stderr

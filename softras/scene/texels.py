@@ -258,7 +258,7 @@ def _downsample(level, out):
 #   RGBA8 "AoS" path): round(s * float(256 W_src)) - 128 in 8.8 fixed point
 #   (round half to even), index = that >> 8, weight = that & 255, both
 #   indices clamped to the level (clamp to edge), the four texels blended by
-#   the byte lerps of `softras.texture.lerp8` (along x, then y);
+#   the byte lerps of `softras.pipeline.texture.lerp8` (along x, then y);
 # - a pixel centre exactly on the diagonal belongs to the upper-right
 #   triangle (measured: 5 sizes where the two triangles' t differ there).
 #
@@ -409,3 +409,44 @@ def levels_buffer(levels) -> np.ndarray:
         else:
             return buffer[:at - start]
     return np.concatenate([np.ascontiguousarray(level, np.uint8).reshape(-1) for level in levels])
+
+
+# ----------------------------------------------------------------------------- addressing
+
+
+def wrap(i: np.ndarray, size: int, mode: str) -> np.ndarray:
+    """Integer texel index -> index inside [0, size) (GL 4.5 section 8.14.2).
+
+    repeat : i mod size.  clamp_to_edge : clamp to [0, size - 1].
+    mirrored_repeat : the texture mirrored every other period,
+    ``m = i mod 2 size; m if m < size else 2 size - 1 - m``.
+    """
+    if mode == "repeat":
+        return np.mod(i, size)
+    if mode == "clamp_to_edge":
+        return np.clip(i, 0, size - 1)
+    if mode == "mirrored_repeat":
+        m = np.mod(i, 2 * size)
+        return np.where(m < size, m, 2 * size - 1 - m)
+    raise ValueError(f"unknown wrap mode {mode!r}")
+
+
+def linear_float_addresses(s: np.ndarray, size: int, mode: str):
+    """GL's linear filter along one axis in float64 (GL 4.5 section 8.14.2):
+    ``u = s size - 1/2``; returns (i0, i1, weight of i1) = (wrap(floor(u)),
+    wrap(floor(u) + 1), frac(u)), (N,) each."""
+    u = s * size - 0.5
+    i0 = np.floor(u)
+    return wrap(i0.astype(np.int64), size, mode), wrap(i0.astype(np.int64) + 1, size, mode), u - i0
+
+
+def bilinear(level: np.ndarray, s: np.ndarray, t: np.ndarray, wrap_s: str, wrap_t: str) -> np.ndarray:
+    """One level (H, W, 4) uint8 filtered bilinearly at (s, t), (N,) each, in
+    float64: (N, 4) texel values on the 0..255 scale."""
+    h, w = level.shape[:2]
+    i0, i1, a = linear_float_addresses(s, w, wrap_s)
+    j0, j1, b = linear_float_addresses(t, h, wrap_t)
+    t00, t10 = level[j0, i0].astype(np.float64), level[j0, i1].astype(np.float64)
+    t01, t11 = level[j1, i0].astype(np.float64), level[j1, i1].astype(np.float64)
+    a, b = a[:, None], b[:, None]
+    return (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11

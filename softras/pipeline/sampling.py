@@ -27,7 +27,7 @@ Patterns
 Use :func:`sample_positions` to pick one by name; the renderer's options are
 ``softras.render(scene, samples=S, pattern=NAME, seed=K)``.
 
-Run ``python -m softras.sampling`` to print a few patterns.
+Run ``python -m softras.pipeline.sampling`` to print a few patterns.
 """
 
 from __future__ import annotations

@@ -26,10 +26,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .texture import MipTexture, filter_level
+from softras.scene.model import Texture
+from softras.scene.texels import bilinear
 
 
-def vertex_heights(texture: MipTexture, uvs: np.ndarray) -> np.ndarray:
+def vertex_heights(texture: Texture, uvs: np.ndarray) -> np.ndarray:
     """Heights in [0, 1] at vertex uvs: (N, 2) (s, t) -> (N,) float64.
 
     Bilinear in level 0 (float64 weights, GL texel centres), the texture's
@@ -38,8 +39,7 @@ def vertex_heights(texture: MipTexture, uvs: np.ndarray) -> np.ndarray:
     uvs = np.asarray(uvs, np.float64)
     if len(uvs) == 0:
         return np.zeros(0)
-    texel = filter_level(texture.levels[0], uvs[:, 0], uvs[:, 1], "linear",
-                         texture.wrap_s, texture.wrap_t, gl=False, fixed8=False)
+    texel = bilinear(texture.levels[0], uvs[:, 0], uvs[:, 1], texture.wrap_s, texture.wrap_t)
     return texel[:, 0] / 255.0
 
 
@@ -67,7 +67,7 @@ def smooth_normals(positions: np.ndarray, indices: np.ndarray, fallback: np.ndar
 
 
 def displace(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, indices: np.ndarray,
-             texture: MipTexture, scale: float) -> tuple[np.ndarray, np.ndarray]:
+             texture: Texture, scale: float) -> tuple[np.ndarray, np.ndarray]:
     """Move vertices along their normals by ``scale * height``.
 
     positions (N, 3), normals (N, 3) model space (need not be unit), uvs

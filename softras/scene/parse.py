@@ -22,267 +22,38 @@ meaning):
 - top-level ``"render_order"``: ``"scene"`` (default, GL's draw order) or
   ``"opaque_then_sorted"`` (see :func:`ordered_draws`);
 - ``"mesh": {"procedural": "grid" | "sphere" | "fan", ...}`` (see
-  :mod:`softras.meshes` and :data:`_PROCEDURAL_MESH_KEYS`);
+  :mod:`softras.scene.meshes` and :data:`_PROCEDURAL_MESH_KEYS`);
 - texture ``"procedural": "checker" | "gradient" | "noise" | "bumps"`` with ``"size"`` and
   per-kind parameters instead of ``"image"`` (see :data:`_PROCEDURAL_TEXTURE_KEYS`);
 - material ``"normal_map": NAME`` (tangent-space normal texture) or
   ``"bump_map": NAME`` with ``"bump_scale"`` (height texture, red channel),
   both for ``"shading": "phong"`` only and needing mesh uvs (see
-  :func:`softras.fragment.bump_normals`); material ``"displacement":
+  :func:`softras.pipeline.fragment.bump_normals`); material ``"displacement":
   {"texture": NAME, "scale": S}`` moves the mesh's vertices along their
-  normals when the scene is loaded (:mod:`softras.displace`), so
+  normals when the scene is loaded (:mod:`softras.scene.displace`), so
   ``Draw.mesh`` is the displaced mesh for both renderers.
 """
 
 from __future__ import annotations
 
 import difflib
-import functools
 import json
 import math
 import numbers
 import os
-from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
-from softras import meshes, texels
-
-FORMAT_VERSION = 1
-MAX_SIDE = 16384                   # pixels per side
-MAX_PIXELS = 64 * 1024 * 1024      # width * height
-MAX_NODE_DEPTH = 64
-MAX_TEXELS = 64 * 1024 * 1024      # texels of one texture's level 0 (image or procedural)
-
-PROJECTIONS = ("perspective", "orthographic", "frustum")
-PRIMITIVES = ("triangles", "lines")
-SHADINGS = ("unlit", "flat", "gouraud", "phong")
-DEPTH_FUNCTIONS = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always")
-CULL_MODES = ("none", "back", "front")
-BLEND_MODES = ("none", "over", "over_straight", "add", "subtract", "reverse_subtract", "min", "max")
-LIGHT_TYPES = ("point", "directional")
-WRAP_MODES = ("repeat", "clamp_to_edge", "mirrored_repeat")
-MIN_FILTERS = ("nearest", "linear", "nearest_mipmap_nearest", "linear_mipmap_nearest",
-               "nearest_mipmap_linear", "linear_mipmap_linear")
-MIPMAP_FILTERS = MIN_FILTERS[2:]
-MAG_FILTERS = ("nearest", "linear")
-PROCEDURAL_TEXTURES = ("checker", "gradient", "noise", "bumps")
-
-DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99}
-
-
-class SceneError(ValueError):
-    """Bad scene input.
-
-    ``str(e)`` is ONE line that starts with the place, e.g.
-    ``'nodes[2].mesh.indices[5]: index 9 out of range for 8 positions'`` or
-    ``'scene.json: invalid JSON at line 3 column 5: ...'``.  The parts are
-    also available as ``e.place`` and ``e.reason``.
-    """
-
-    def __init__(self, place: str, reason: str):
-        # One line even when a key holds a newline or another control character.
-        self.place = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(place))
-        place = self.place
-        self.reason = " ".join(str(reason).split())   # one line
-        super().__init__(f"{place}: {self.reason}")
-
-
-# --------------------------------------------------------------------------- model
-
-
-@dataclass(frozen=True, eq=False)
-class Camera:
-    view: np.ndarray          # (4, 4) float64, world -> eye
-    projection: np.ndarray    # (4, 4) float64, eye -> clip (z_ndc in [-1, 1])
-    kind: str                 # "perspective" | "orthographic" | "frustum" | "matrix"
-
-
-@dataclass(frozen=True, eq=False)
-class Mesh:
-    primitive: str             # "triangles" | "lines"
-    positions: np.ndarray      # (N, 3) float64, model space
-    indices: np.ndarray        # (M, 3) int64 for triangles, (M, 2) for lines
-    colors: np.ndarray | None  # (N, 4) float64 RGBA (RGB input gets alpha 1)
-    normals: np.ndarray | None  # (N, 3) float64, model space
-    uvs: np.ndarray | None     # (N, 2) float64, v = 0 at the image top
-
-    @functools.cached_property
-    def tangents(self) -> np.ndarray:
-        """(N, 4) float64 per-vertex tangent frames for normal and bump mapping:
-        xyz = unit tangent along +s (model space, orthogonal to the normal),
-        w = handedness +-1 (`softras.meshes.vertex_tangents`).  Computed once,
-        on first use, and read by both renderers."""
-        return _readonly(meshes.vertex_tangents(self.positions, self.normals, self.uvs, self.indices))
-
-
-@dataclass(frozen=True, eq=False)
-class Material:
-    color: np.ndarray         # (4,) float64 straight RGBA, default (1, 1, 1, 1)
-    texture: str | None       # name in Scene.textures
-    shading: str              # "unlit" | "flat" | "gouraud" | "phong"
-    ambient: float
-    diffuse: float
-    specular: float
-    shininess: float
-    normal_map: str | None = None    # texture name: tangent-space normals, rgb = (n + 1) / 2 (phong only)
-    bump_map: str | None = None      # texture name: height in the red channel (phong only)
-    bump_scale: float = 1.0          # bump strength (height units per texel, see softras.fragment)
-    displacement: "Displacement | None" = None  # already applied to Draw.mesh by the loader
-
-
-@dataclass(frozen=True, eq=False)
-class Displacement:
-    texture: str              # name in Scene.textures: height in the red channel
-    scale: float              # model-space distance along the normal for height 1
-
-
-@dataclass(frozen=True, eq=False)
-class Texture:
-    name: str
-    image: str | None         # absolute path of the image file; None for a procedural texture
-    wrap_s: str
-    wrap_t: str
-    min_filter: str
-    mag_filter: str
-    max_anisotropy: float
-    procedural: str | None = None             # "checker" | "gradient" | "noise"
-    size: tuple[int, int] | None = None       # (width, height) of a procedural texture
-    params: dict = field(default_factory=dict)  # its parameters, defaults filled in
-    # An image texture's level 0, straight RGBA (H, W, 4) uint8, row 0 = v 0:
-    # decoded once by the loader (which must decode it to check the file).
-    decoded: np.ndarray | None = field(default=None, repr=False)
-
-    @property
-    def mipmapped(self) -> bool:
-        """Whether the min filter reads mip levels (else only level 0 is used)."""
-        return self.min_filter in MIPMAP_FILTERS
-
-    @functools.cached_property
-    def levels(self) -> tuple[np.ndarray, ...]:
-        """The premultiplied mip chain, level 0 down to 1x1, each (H_l, W_l, 4)
-        uint8, row 0 = v 0 (`softras.texels.mip_chain`: llvmpipe's
-        glGenerateMipmap).  softras samples it; glref uploads level 0 and
-        has GL generate the rest.  Decoded and built once, on first use."""
-        chain = texels.mip_chain(texels.source_texels(self), premultiply=True)
-        return tuple(_readonly(level) for level in chain)
-
-
-@dataclass(frozen=True, eq=False)
-class Light:
-    type: str                        # "point" | "directional"
-    position: np.ndarray | None      # (3,) world space, point lights
-    direction: np.ndarray | None     # (3,) world space, the way the light travels
-    color: np.ndarray                # (3,) linear RGB, >= 0
-
-
-@dataclass(frozen=True, eq=False)
-class Draw:
-    path: str                 # "nodes[0].children[1]"
-    name: str
-    world: np.ndarray         # (4, 4) float64 model -> world = parent.world @ local
-    mesh: Mesh
-    material: Material
-    depth_test: str | None    # None = depth test disabled
-    depth_write: bool
-    cull: str                 # "none" | "back" | "front" (front face = counter-clockwise)
-    blend: str
-
-
-@dataclass(frozen=True, eq=False)
-class Scene:
-    width: int
-    height: int
-    background: np.ndarray    # (4,) float64 straight RGBA in [0, 1]
-    samples: int              # 1 or 4
-    camera: Camera
-    textures: dict[str, Texture]
-    lights: tuple[Light, ...]
-    draws: tuple[Draw, ...]   # depth-first, parents before children, list order
-    tolerance: dict           # threshold (int, /255), max_bad_fraction, min_ssim
-    source: str               # file path or "<dict>"
-    description: str = ""
-    framebuffer: str = "rgba8"          # "rgba8" | "rgba32f" (see FRAMEBUFFERS)
-    render_order: str = "scene"         # "scene" | "opaque_then_sorted" (see ordered_draws)
-
-
-# --------------------------------------------------------------------------- GL matrices
-
-
-def perspective_matrix(fov_y: float, aspect: float, near: float, far: float) -> np.ndarray:
-    """gluPerspective: f = cot(fov_y/2); rows (f/aspect,0,0,0), (0,f,0,0),
-    (0,0,(far+near)/(near−far), 2·far·near/(near−far)), (0,0,−1,0).  fov_y in degrees."""
-    f = 1.0 / math.tan(math.radians(fov_y) / 2.0)
-    return np.array([[f / aspect, 0, 0, 0],
-                     [0, f, 0, 0],
-                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)],
-                     [0, 0, -1, 0]], dtype=np.float64)
-
-
-def frustum_matrix(left, right, bottom, top, near, far) -> np.ndarray:
-    """glFrustum."""
-    return np.array([[2 * near / (right - left), 0, (right + left) / (right - left), 0],
-                     [0, 2 * near / (top - bottom), (top + bottom) / (top - bottom), 0],
-                     [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
-                     [0, 0, -1, 0]], dtype=np.float64)
-
-
-def orthographic_matrix(left, right, bottom, top, near, far) -> np.ndarray:
-    """glOrtho."""
-    return np.array([[2 / (right - left), 0, 0, -(right + left) / (right - left)],
-                     [0, 2 / (top - bottom), 0, -(top + bottom) / (top - bottom)],
-                     [0, 0, -2 / (far - near), -(far + near) / (far - near)],
-                     [0, 0, 0, 1]], dtype=np.float64)
-
-
-def look_at_matrix(eye, target, up) -> np.ndarray:
-    """gluLookAt: f = normalize(target − eye), s = normalize(f × up), u = s × f;
-    rows (s, 0), (u, 0), (−f, 0), (0, 0, 0, 1), times translate(−eye)."""
-    eye = np.asarray(eye, dtype=np.float64)
-    f = np.asarray(target, dtype=np.float64) - eye
-    f = f / np.linalg.norm(f)
-    s = cross3(f, np.asarray(up, dtype=np.float64))
-    s = s / np.linalg.norm(s)
-    u = cross3(s, f)
-    rotation = np.identity(4)
-    rotation[0, :3], rotation[1, :3], rotation[2, :3] = s, u, -f
-    return rotation @ translate_matrix(-eye)
-
-
-def cross3(a, b) -> np.ndarray:
-    """a × b of two 3-vectors: the products and differences of np.cross (the
-    same doubles) without its general-shape machinery (30 µs a call)."""
-    a0, a1, a2 = (float(x) for x in a)
-    b0, b1, b2 = (float(x) for x in b)
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-
-
-def translate_matrix(offset) -> np.ndarray:
-    """glTranslate."""
-    matrix = np.identity(4)
-    matrix[:3, 3] = offset
-    return matrix
-
-
-def rotate_matrix(angle_degrees: float, axis) -> np.ndarray:
-    """glRotate: counter-clockwise by ``angle_degrees`` about the (normalised) axis."""
-    x, y, z = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
-    c, s = math.cos(math.radians(angle_degrees)), math.sin(math.radians(angle_degrees))
-    matrix = np.identity(4)
-    matrix[:3, :3] = [[x * x * (1 - c) + c, x * y * (1 - c) - z * s, x * z * (1 - c) + y * s],
-                      [y * x * (1 - c) + z * s, y * y * (1 - c) + c, y * z * (1 - c) - x * s],
-                      [x * z * (1 - c) - y * s, y * z * (1 - c) + x * s, z * z * (1 - c) + c]]
-    return matrix
-
-
-def scale_matrix(factors) -> np.ndarray:
-    """glScale."""
-    return np.diag([*np.asarray(factors, dtype=np.float64), 1.0])
-
-
-# --------------------------------------------------------------------------- value helpers
-
+from softras.scene import displace, meshes, texels
+from softras.scene.model import (BLEND_MODES, CULL_MODES, DEFAULT_TOLERANCE, DEPTH_FUNCTIONS, FORMAT_VERSION, FRAMEBUFFERS,
+                                 LIGHT_TYPES, MAG_FILTERS, MAX_NODE_DEPTH, MAX_PIXELS, MAX_SIDE, MAX_TEXELS,
+                                 MIN_FILTERS, PRIMITIVES, PROCEDURAL_TEXTURES, PROJECTIONS, RENDER_ORDERS, SHADINGS,
+                                 WRAP_MODES,
+                                 Camera, Displacement, Draw, Light, Material, Mesh, Scene, SceneError, Texture,
+                                 _readonly)
+from softras.scene.transforms import (cross3, frustum_matrix, look_at_matrix, orthographic_matrix,
+                                      perspective_matrix, rotate_matrix, scale_matrix, translate_matrix)
 
 def _is_number(value) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
@@ -486,21 +257,11 @@ def _join(place: str, key) -> str:
     return str(key) if place == "scene" else f"{place}.{key}"
 
 
-def _readonly(array: np.ndarray | None) -> np.ndarray | None:
-    if array is not None:
-        array.setflags(write=False)
-    return array
-
-
 # --------------------------------------------------------------------------- sections
 
 
 _TOP_KEYS = ("softras_scene", "description", "width", "height", "background", "samples",
              "camera", "textures", "lights", "nodes", "tolerance", "framebuffer", "render_order")
-# Top-level "framebuffer": the colour buffer both renderers draw into.
-FRAMEBUFFERS = ("rgba8", "rgba32f")
-# Top-level "render_order": the order both renderers draw in (see ordered_draws).
-RENDER_ORDERS = ("scene", "opaque_then_sorted")
 
 
 def _parse_size(data: dict) -> tuple[int, int]:
@@ -922,7 +683,7 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
 
 
 def _displaced_mesh(mesh: Mesh, displacement: Displacement, textures: dict[str, Texture], place: str) -> Mesh:
-    """The mesh with its vertices moved along their normals (softras.displace)."""
+    """The mesh with its vertices moved along their normals (softras.scene.displace)."""
     if mesh.primitive != "triangles":
         raise SceneError(place, f"displacement needs triangles, this mesh has {mesh.primitive}")
     for key in ("normals", "uvs"):
@@ -931,9 +692,9 @@ def _displaced_mesh(mesh: Mesh, displacement: Displacement, textures: dict[str, 
     zero = np.flatnonzero(~np.any(mesh.normals, axis=1))
     if len(zero):
         raise SceneError(place, f"the mesh normal {zero[0]} is the zero vector (displacement moves along normals)")
-    from softras import displace, texture as texture_stage   # texture imports this module
     try:
-        height = texture_stage.prepare(textures[displacement.texture])
+        height = textures[displacement.texture]
+        height.levels                   # decoded and premultiplied here, to report a bad file
     except (OSError, ValueError) as error:
         raise SceneError(f"{place}.texture", f"cannot read texture {displacement.texture!r}: {error}") from None
     positions, normals = displace.displace(mesh.positions, mesh.normals, mesh.uvs, mesh.indices,
@@ -983,34 +744,6 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = No
                  camera=camera, textures=textures, lights=lights, draws=tuple(draws),
                  tolerance=tolerance, source=source, description=description,
                  framebuffer=framebuffer, render_order=render_order)
-
-
-def ordered_draws(scene: Scene) -> tuple[Draw, ...]:
-    """The draws in the order both renderers issue them (``scene.render_order``).
-
-    "scene": ``scene.draws`` as they are (GL's draw-call order).
-    "opaque_then_sorted" (the lecture's order for transparency): first every
-    opaque draw (``blend == "none"``) in scene order, then the transparent
-    ones back to front -- decreasing view-space distance ``-z_eye`` of the
-    centre of their mesh's model-space bounding box, ties kept in scene
-    order -- each with depth writes off (depth read-only: still tested
-    against the opaque surfaces, but transparent surfaces do not hide each
-    other).  Sorting is per draw, not per triangle: within a draw primitives
-    still blend in index order.
-    """
-    if getattr(scene, "render_order", "scene") == "scene":     # (or a Scene-like object without one)
-        return scene.draws
-    opaque = [draw for draw in scene.draws if draw.blend == "none"]
-    transparent = [draw for draw in scene.draws if draw.blend != "none"]
-
-    def distance(draw: Draw) -> float:
-        positions = draw.mesh.positions
-        centre = (positions.min(axis=0) + positions.max(axis=0)) / 2 if len(positions) else np.zeros(3)
-        eye = scene.camera.view @ draw.world @ np.append(centre, 1.0)     # eye space, looking down -z
-        return -eye[2]
-
-    back_to_front = sorted(transparent, key=distance, reverse=True)
-    return tuple(opaque) + tuple(replace(draw, depth_write=False) for draw in back_to_front)
 
 
 def _reject_constant(name: str):

@@ -2,15 +2,15 @@
 
 ``softras conformance`` renders each scene with softras (precision "gl") and
 with glref, and gives it one of dEQP's verdicts through
-:mod:`softras.verifier` under a profile (``--profile``):
+:mod:`softras.verification.verifier` under a profile (``--profile``):
 
 * ``strict`` -- the scene's tolerance on every pixel, quality warning when
-  it holds only with the ambiguity mask excused (:func:`softras.verifier.judge_strict`);
+  it holds only with the ambiguity mask excused (:func:`softras.verification.verifier.judge_strict`);
   softras's contract with the implementation it reproduces (llvmpipe 22.3);
 * ``spec`` -- both pictures within the per-pixel bounds of what any
-  conformant GL may draw (:func:`softras.verifier.judge_spec`);
+  conformant GL may draw (:func:`softras.verification.verifier.judge_spec`);
 * ``auto`` (default) -- strict for the implementation softras reproduces,
-  spec for any other (:func:`softras.verifier.choose_profile`).
+  spec for any other (:func:`softras.verification.verifier.choose_profile`).
 
 A fourth verdict, **not supported** (dEQP's NotSupported), is given to a scene
 that needs what the GL context lacks (a sample count, anisotropic filtering,
@@ -18,12 +18,12 @@ a texture size: :func:`glref.unsupported`); it is never a failure.
 
 Tolerance: the scene's own ``"tolerance"`` when its file declares one,
 otherwise the defaults for the features it uses
-(:data:`softras.verifier.FEATURE_TOLERANCES`, the one set of defaults).
+(:data:`softras.verification.verifier.FEATURE_TOLERANCES`, the one set of defaults).
 
 Scenes run in this process (``jobs=1``) or in worker processes started with
 ``spawn`` (a fresh interpreter each: every worker creates its own EGL context;
 a context cannot survive ``fork``). Results come back in scene order.
-:mod:`softras.runner` runs them the way ``softras conformance`` does: one
+:mod:`softras.verification.runner` runs them the way ``softras conformance`` does: one
 supervised worker process per job, crash isolation, time limits, retries,
 baselines and resumable reports, and the verdicts that only a runner can give
 (CRASH, TIMEOUT, FLAKY, defined here with the others).
@@ -46,7 +46,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from softras.scene import scene_files
-from softras.verifier import (FAIL, FEATURE_TOLERANCES, NOT_SUPPORTED, PASS, PROFILES, VERDICT_NAMES, WARN,
+from softras.verification.verifier import (FAIL, FEATURE_TOLERANCES, NOT_SUPPORTED, PASS, PROFILES, VERDICT_NAMES, WARN,
                               feature_tolerance, judge_strict, scene_tolerance)
 
 __all__ = [
@@ -57,7 +57,7 @@ __all__ = [
     "run", "counts", "ProgressBar",
 ]
 
-#: Verdicts of the runner (:mod:`softras.runner`), never of a check: the worker
+#: Verdicts of the runner (:mod:`softras.verification.runner`), never of a check: the worker
 #: died (CRASH), overran ``--timeout`` (TIMEOUT), or the verdict changed
 #: between attempts of ``--retries`` (FLAKY).
 CRASH, TIMEOUT, FLAKY = "crash", "timeout", "flaky"
@@ -154,9 +154,9 @@ class SceneResult:
     """The verdict on one scene, with its figures and pictures.
 
     ``images`` holds ``uint8`` ``(H, W, 4)`` pictures, row 0 = top: ``soft``,
-    ``gl``, ``diff`` (heat map, :func:`softras.metrics.diff_heatmap`),
-    ``ssim`` and ``flip`` (:func:`softras.metrics.error_map_image`),
-    ``ambiguity`` (:meth:`softras.ambiguity.Ambiguity.image`) and ``where``
+    ``gl``, ``diff`` (heat map, :func:`softras.verification.metrics.diff_heatmap`),
+    ``ssim`` and ``flip`` (:func:`softras.verification.metrics.error_map_image`),
+    ``ambiguity`` (:meth:`softras.verification.ambiguity.Ambiguity.image`) and ``where``
     (the differing pixels beyond the tolerance: red outside the ambiguity
     mask, cyan inside, over softras's picture dimmed).
     """
@@ -195,9 +195,9 @@ class SceneResult:
 
 
 def _render_soft(scene) -> np.ndarray:
-    import softras
+    from softras.renderer import render_scene
 
-    return softras.render(scene, precision="gl")
+    return render_scene(scene, precision="gl")
 
 
 def _render_gl(scene) -> np.ndarray:
@@ -206,7 +206,7 @@ def _render_gl(scene) -> np.ndarray:
     return glref.render(scene)
 
 
-#: The strict profile's verdict (moved to :mod:`softras.verifier`; kept under its old name).
+#: The strict profile's verdict (moved to :mod:`softras.verification.verifier`; kept under its old name).
 judge = judge_strict
 
 
@@ -240,7 +240,7 @@ def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
     tolerance : dict, optional
         Overrides the scene's tolerance (:func:`scene_tolerance`).
     profile : "auto", "strict" or "spec"
-        :func:`softras.verifier.choose_profile` with the GL's capability record.
+        :func:`softras.verification.verifier.choose_profile` with the GL's capability record.
 
     Returns
     -------
@@ -249,8 +249,8 @@ def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
         inside the check: the result is a FAIL whose reason says what happened
         (NOT SUPPORTED when the GL context lacks what the scene needs).
     """
-    from softras import ambiguity as amb
-    from softras import verifier
+    from softras.verification import ambiguity as amb
+    from softras.verification import verifier
     from softras.scene import load_scene
 
     render_soft = render_soft or _render_soft
@@ -392,7 +392,7 @@ def run(paths: list[Path], *, jobs: int = 1, on_result: Callable[[SceneResult], 
 
     This is the plain path for the Python API: a crash in the GL driver ends
     this process (``jobs=1``) or breaks the pool (every pending scene FAILs),
-    and nothing limits a scene's time. :func:`softras.runner.run` (what
+    and nothing limits a scene's time. :func:`softras.verification.runner.run` (what
     ``softras conformance`` uses) supervises one worker process per job instead.
     """
     if jobs < 1:

@@ -405,7 +405,7 @@ def update(
         Bad scenes, no OpenGL, an unwritable folder, an unreadable manifest
         (partial update), or a partial update on a different OpenGL.
     """
-    from softras.imageio import ImageError, read_png, write_png_atomic
+    from softras.scene.imageio import ImageError, read_png, write_png_atomic
 
     golden_dir = Path(golden_dir if golden_dir is not None else GOLDEN_DIR)
     scenes = _load_scenes(scene_paths)
@@ -537,7 +537,7 @@ class Verification:
     gl_exact: bool = True             # glref compared exactly (same GL) or with tolerance
     gl_diff_pixels: int | None = None  # pixels where glref differs from the golden image
     gl_comparison: object = None      # Comparison, when compared with tolerance (other GL)
-    soft: object = None               # softras.metrics.Comparison, soft vs golden
+    soft: object = None               # softras.verification.metrics.Comparison, soft vs golden
     seconds: float = 0.0
     images: dict = field(default_factory=dict)  # golden / gl / soft arrays (keep_images)
 
@@ -606,10 +606,11 @@ def verify(
     GoldenError
         Bad scenes, no OpenGL, an unreadable manifest.
     """
-    import softras
-    from softras.imageio import ImageError, read_png
+    from softras.renderer import render_scene
+    from softras.scene.imageio import ImageError, read_png
+    from softras.verification.metrics import compare
     from softras.scene import SceneError
-    from softras.verifier import scene_tolerance
+    from softras.verification.verifier import scene_tolerance
 
     golden_dir = Path(golden_dir if golden_dir is not None else GOLDEN_DIR)
     scenes = _load_scenes(scene_paths)
@@ -659,17 +660,17 @@ def verify(
                          f"pixel{'s' if result.gl_diff_pixels != 1 else ''} differ): the scene, glref or "
                          f"the driver changed; review, then softras golden --update")
             else:
-                result.gl_comparison = softras.compare(gl, golden, **tolerance)
+                result.gl_comparison = compare(gl, golden, **tolerance)
                 if not result.gl_comparison.passed:
                     fail(f"glref on {_describe_gl(here)} vs golden from {_describe_gl(manifest['provenance'])}: "
                          + _tolerance_text(result.gl_comparison))
             try:
-                soft = softras.render(scene, precision="gl")
+                soft = render_scene(scene, precision="gl")
             except (SceneError, NotImplementedError) as error:
                 fail(f"softras cannot render the scene: {_one_line(error)}")
                 soft = None
             if soft is not None:
-                result.soft = softras.compare(soft, golden, **tolerance)
+                result.soft = compare(soft, golden, **tolerance)
                 if not result.soft.passed:
                     fail("softras vs golden: " + _tolerance_text(result.soft))
             if keep_images:

@@ -3,7 +3,7 @@
 For a triangle and a pixel, the *exact coverage* is the area of the triangle
 clipped against the pixel's unit square, in [0, 1]: what an infinitely dense
 sample pattern with a box resolve would converge to.  GL has no such mode; it
-is softras's ground truth for measuring sample patterns (`softras.sampling`,
+is softras's ground truth for measuring sample patterns (`softras.pipeline.sampling`,
 docs/antialiasing.md, scripts/coverage_error.py).
 
 Spaces: every position here is a window coordinate (GL's y-up window space,
@@ -185,14 +185,14 @@ def sampled_coverage(triangles: np.ndarray, width: int, height: int, positions: 
     """Coverage estimated by softras's rasterizer: covered samples / S per (triangle, pixel).
 
     triangles : (T, 3, 2) window x, y; positions : (S, 2) sample positions in
-    [0, 1)^2 (`softras.sampling`), any S (rasterized in passes of <= 32).
+    [0, 1)^2 (`softras.pipeline.sampling`), any S (rasterized in passes of <= 32).
     precision : "exact" (float64 edge functions, no snapping: the pattern's
     own error) or "gl" (llvmpipe's 1/256 snapping of vertices and samples).
     Returns the pairs with at least one covered sample (``area`` holds the
     fraction), by triangle then row then column.
     """
-    from . import rasterize, setup
-    from .sampling import sample_passes
+    from softras.pipeline import rasterize, setup
+    from softras.pipeline.sampling import sample_passes
 
     tris = _check_triangles(triangles)
     positions = np.asarray(positions, np.float64)
@@ -223,9 +223,9 @@ def scene_triangles(scene) -> np.ndarray:
     in float64, then the viewport transform; lines are skipped.  Culling is
     ignored: coverage does not depend on winding.
     """
-    from . import clip as clip_stage
-    from . import setup, vertex
-    from .scene import load_scene
+    from softras.pipeline import clip as clip_stage
+    from softras.pipeline import setup, vertex
+    from softras.scene import load_scene
 
     scene = load_scene(scene)
     found = [np.zeros((0, 3, 2))]

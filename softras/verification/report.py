@@ -7,7 +7,7 @@
     results.json        the run and every scene's verdict, reasons and figures
     junit.xml           one <testcase> per scene (CI systems read it)
     <scene>/*.png       soft, gl, diff, ssim, flip, ambiguity, where
-    failures.csv        (written by softras.runner) every scene that did not pass,
+    failures.csv        (written by softras.verification.runner) every scene that did not pass,
                         ``name,VERDICT``: a --baseline for the next run
 
 Failing scenes come first, then quality warnings, then passes, each marked
@@ -15,8 +15,8 @@ with a coloured badge, so the page says at a glance which scene failed, where
 (the "where" picture: red pixels differ beyond the tolerance outside the
 ambiguity mask, cyan inside it) and why (the reasons, naming the stage).
 
-Every file is written atomically (:mod:`softras.imageio`); files of other
-scenes already in the folder are left alone. :mod:`softras.runner` writes a
+Every file is written atomically (:mod:`softras.scene.imageio`); files of other
+scenes already in the folder are left alone. :mod:`softras.verification.runner` writes a
 scene's pictures as it finishes (:func:`write_scene_images`) and the three
 summary files after each scene (:func:`write_summary`), so an interrupted
 run leaves a valid report of what finished (``"complete": false`` and the
@@ -31,7 +31,7 @@ import os
 from pathlib import Path
 from xml.etree import ElementTree
 
-from softras.conformance import (CONFORMING, CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, VERDICT_NAMES,
+from softras.verification.conformance import (CONFORMING, CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, VERDICT_NAMES,
                                  VERDICT_ORDER, WARN, SceneResult, counts)
 
 __all__ = ["FORMAT", "IMAGE_CAPTIONS", "write_report", "write_scene_images", "write_summary", "results_json",
@@ -312,7 +312,7 @@ def _folder_name(result: SceneResult, taken: set) -> str:
 
 def write_scene_images(folder: str | os.PathLike, result: SceneResult) -> None:
     """Write one scene's pictures into ``folder/<result.name>/`` (atomically, each)."""
-    from softras.imageio import write_png_atomic
+    from softras.scene.imageio import write_png_atomic
 
     if not result.images:
         return
@@ -324,7 +324,7 @@ def write_scene_images(folder: str | os.PathLike, result: SceneResult) -> None:
 
 def write_summary(folder: str | os.PathLike, results: list[SceneResult], meta: dict) -> Path:
     """Write results.json, junit.xml and index.html (atomically, each); returns index.html's path."""
-    from softras.imageio import write_text_atomic
+    from softras.scene.imageio import write_text_atomic
 
     folder = Path(folder)
     write_text_atomic(folder / "results.json", results_json(results, meta))
@@ -342,7 +342,7 @@ def write_report(folder: str | os.PathLike, results: list[SceneResult], meta: di
     folder : path
         The report folder.
     results : list of SceneResult
-        From :func:`softras.conformance.run`. Two scenes with the same name
+        From :func:`softras.verification.conformance.run`. Two scenes with the same name
         (from different folders) get ``name-2`` and so on for their pictures.
     meta : dict
         About the run: ``seconds``, ``jobs``, ``gl_renderer``, ``shard``,

@@ -40,7 +40,7 @@ softras's own picture. A pixel gets the first label that applies:
 
 The mask is the union of the three. What it does not cover: differences of
 arithmetic precision in smooth regions (interpolation, lighting, filter
-weights), which the scene's per-pixel threshold is for. :mod:`softras.conformance` applies the
+weights), which the scene's per-pixel threshold is for. :mod:`softras.verification.conformance` applies the
 scene's strict tolerance to the whole image; where it fails but holds once
 the ambiguous pixels are excused, the verdict is a quality warning, not a
 failure. The primitive-ID pictures of softras and GL, compared with each
@@ -254,7 +254,7 @@ def as_uint8(image: np.ndarray) -> np.ndarray:
 
 
 def _soft_render(scene, precision: str) -> np.ndarray:
-    from softras.pipeline import render_scene
+    from softras.renderer import render_scene
 
     return as_uint8(render_scene(scene, precision=precision))
 

@@ -1,7 +1,7 @@
 """Line stage: clipping, setup and rasterization of width-1 lines (GL_LINES).
 
 A line goes through the same spaces as a triangle (DESIGN.md section 3):
-clip space -> `clip_lines` -> `softras.setup.viewport_transform` (fused for
+clip space -> `clip_lines` -> `softras.pipeline.setup.viewport_transform` (fused for
 the shader's vertices, unfused for the clipper's) -> window space ->
 `rasterize_lines` -> fragments, with a parameter ``t`` per fragment for
 depth (`depth_at_samples`) and attributes (`interpolate_lines`).
@@ -73,9 +73,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .clip import clip_planes
-from .rasterize import Fragments
-from .setup import viewport_transform
+from softras.pipeline.clip import clip_planes
+from softras.pipeline.rasterize import Fragments
+from softras.pipeline.setup import viewport_transform
 
 FIXED_ORDER = 8
 FIXED_ONE = 1 << FIXED_ORDER        # llvmpipe's subpixel grid: 1/256 pixel
@@ -143,7 +143,7 @@ class ClippedLines:
         attribute is ``weights[l] @ attribute[indices[source[l]]]``.
     generated : (L, 2) bool, end points made by the clipper (their window
         coordinates are computed by Mesa's C code, unfused: see
-        `softras.setup.viewport_transform`).
+        `softras.pipeline.setup.viewport_transform`).
     """
 
     clip: np.ndarray
@@ -161,7 +161,7 @@ def clip_lines(clip: np.ndarray, indices: np.ndarray, *, precision: str = "gl",
 
     clip : (N, 4) float64 clip-space vertex positions; indices : (M, 2).
     policy : "llvmpipe" (the view volume; what Mesa does for desktop GL
-        lines) or "guard_band" (x and y against `softras.clip`'s guard band,
+        lines) or "guard_band" (x and y against `softras.pipeline.clip`'s guard band,
         z against the view volume); width, height size the guard band.
     A line with both end points inside every plane passes unchanged; one with
     both end points outside the same plane is dropped; otherwise, for every
@@ -656,7 +656,7 @@ def rasterize_lines(window: np.ndarray, width: int, height: int, precision: str 
 
     window : (L, 2, 2 or 3) float64 window coordinates of the end points
         (x_w, y_w[, z_w]); in gl precision float32 values (from
-        `softras.setup.viewport_transform`).
+        `softras.pipeline.setup.viewport_transform`).
     sample_positions : (S, 2) positions in [0, 1) within the pixel (default:
         the centre).  Coverage is per sample.
     rectangular : llvmpipe's rectangular lines (default: S > 1, which is what
@@ -769,7 +769,7 @@ def interpolate_lines(t: np.ndarray, inv_w: np.ndarray, values: np.ndarray,
 class LineFragments:
     """What the per-sample operations need for one draw of lines.
 
-    fragments : `softras.rasterize.Fragments` (``tri`` indexes the clipped lines).
+    fragments : `softras.pipeline.rasterize.Fragments` (``tri`` indexes the clipped lines).
     z : (F, S) window depth per sample (unquantized).
     values : (F, K) the interpolated per-vertex values (e.g. colours).
     """

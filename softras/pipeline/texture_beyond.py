@@ -1,8 +1,7 @@
-"""Texture filters beyond GL: ripmaps and EWA, a supersampled ground truth,
-and the cost of every filter.
+"""Texture filters beyond GL: ripmaps and EWA, and the cost of every filter.
 
 OpenGL has no counterpart for these, so they are judged against a
-supersampled ground truth (:func:`supersampled_reference`) instead of glref.
+supersampled ground truth (`softras.verification.ground_truth`) instead of glref.
 They are selected per render with the option ``texture_filter`` (softras
 only; glref ignores it)::
 
@@ -11,7 +10,7 @@ only; glref ignores it)::
     softras render SCENE -o OUT.png --texture-filter ripmap
 
 The chosen filter replaces the texture's min filter (and the anisotropic
-filter); wrap modes stay.  Coordinates are as in `softras.texture`: (s, t)
+filter); wrap modes stay.  Coordinates are as in `softras.pipeline.texture`: (s, t)
 normalized, ``u = s W``, ``v = t H`` in texels of level 0, texel (i, j) of a
 level of size W_l x H_l has its centre at ``((i + 0.5) / W_l, (j + 0.5) / H_l)``.
 
@@ -40,15 +39,15 @@ EWA (Heckbert 1989, elliptical weighted average)
 
 from __future__ import annotations
 
-import dataclasses
 import time
 import weakref
 
 import numba
 import numpy as np
 
-from . import texels, texture
-from .texture import MipTexture
+from softras.scene import texels
+from softras.pipeline import texture
+from softras.pipeline.texture import MipTexture
 
 FILTERS = ("ripmap", "ewa", "level0")
 """Names `texture_filter` accepts.  "level0" is bilinear on level 0 whatever
@@ -94,8 +93,8 @@ def filter_for(option, texture_name: str) -> str | None:
 
 def sample_texture(tex: MipTexture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarray,
                    precision: str = "gl", fixed_point: bool = True, texture_filter=None) -> np.ndarray:
-    """`softras.texture.sample`, or the filter ``texture_filter`` names for
-    this texture.  Arguments and result as `softras.texture.sample`."""
+    """`softras.pipeline.texture.sample`, or the filter ``texture_filter`` names for
+    this texture.  Arguments and result as `softras.pipeline.texture.sample`."""
     name = filter_for(texture_filter, tex.name)
     if name is None:
         return texture.sample(tex, st, ddx, ddy, precision, fixed_point)
@@ -326,33 +325,6 @@ def sample_ewa(tex: MipTexture, st: np.ndarray, ddx: np.ndarray,
     return out / 255.0, reads
 
 
-# ----------------------------------------------------------------------------- ground truth
-
-
-def supersampled_reference(scene, factor: int = 16) -> np.ndarray:
-    """A supersampled ground truth: (H, W, 4) float64 premultiplied RGBA in
-    [0, 1], row 0 = top.
-
-    Every pixel is covered by factor x factor sample positions (a regular
-    grid at ((a + 1/2) / factor, (b + 1/2) / factor)); at each the scene is
-    rendered in exact precision (float64, analytic uv per sample) with
-    ``texture_filter="level0"`` (bilinear on level 0: the texture as a
-    continuous function, no pre-filtering), and the samples are box-averaged.
-    """
-    from .pipeline import render_scene
-    big = dataclasses.replace(scene, width=scene.width * factor, height=scene.height * factor, samples=1)
-    image = render_scene(big, precision="exact", texture_filter="level0").astype(np.float64) / 255.0
-    h, w = scene.height, scene.width
-    return image.reshape(h, factor, w, factor, 4).mean(axis=(1, 3))
-
-
-def errors_against(reference: np.ndarray, image: np.ndarray) -> dict:
-    """RMSE and mean absolute error of an (H, W, 4) uint8 image against a
-    float reference in [0, 1], over the RGB channels, on the 0..255 scale."""
-    diff = image[..., :3].astype(np.float64) - reference[..., :3] * 255.0
-    return {"rmse": float(np.sqrt(np.mean(diff ** 2))), "mean_abs": float(np.mean(np.abs(diff)))}
-
-
 # ----------------------------------------------------------------------------- cost
 
 
@@ -456,5 +428,5 @@ def format_costs(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-if __name__ == "__main__":      # python -m softras.texture_beyond: print the cost table
+if __name__ == "__main__":      # python -m softras.pipeline.texture_beyond: print the cost table
     print(format_costs(filter_costs()))

@@ -2,7 +2,7 @@
 
 ``explain_pixel(scene, x, y)`` re-runs the software pipeline for one pixel
 with the stage modules' own functions, in the order and with the arguments
-`softras.pipeline.render_scene` uses (its general path), and records what
+`softras.renderer.render_scene` uses (its general path), and records what
 each stage did there:
 
 - every draw that reached the pixel, and in it every triangle (or line) that
@@ -23,13 +23,13 @@ each stage did there:
   pixel (the tests assert that it equals the rendered image's pixel).
 
 Only the rasterizer is restricted to the pixel: every triangle whose bounding
-box holds the pixel is rasterized by `softras.rasterize.rasterize` with its
+box holds the pixel is rasterized by `softras.pipeline.rasterize.rasterize` with its
 box shrunk to that one pixel (the block tests are exact, so the coverage is
 the same as in the full rendering).  The per-sample operations run
-`softras.ops.apply_fragments` on a 1 x 1 framebuffer that starts cleared to
+`softras.pipeline.ops.apply_fragments` on a 1 x 1 framebuffer that starts cleared to
 the scene's background, one fragment at a time, so the values before and
 after each fragment can be read.  Lines are rasterized whole with
-`softras.lines.rasterize_lines` and filtered to the pixel.
+`softras.pipeline.lines.rasterize_lines` and filtered to the pixel.
 
 Coordinates.  The user's pixel (x, y) is in IMAGE coordinates, as the PNG is
 seen: column x from the left, row y from the TOP.  GL's window coordinates
@@ -49,9 +49,9 @@ import math
 import numba
 import numpy as np
 
-from . import clip as clip_stage
-from . import fragment, interpolate, lines, ops, pipeline, rasterize, setup, texture, vertex
-from .scene import Scene, load_scene, ordered_draws
+from softras.pipeline import clip as clip_stage
+from softras.pipeline import fragment, interpolate, lines, ops, render as pipeline, rasterize, setup, texture, vertex
+from softras.scene import Scene, load_scene, ordered_draws
 
 __all__ = ["explain_pixel", "check_pixel", "format_text", "gl_pixel", "parse_pixel"]
 
@@ -538,7 +538,7 @@ def explain_pixel(scene, x: int, y: int, *, precision: str = "gl", samples: int 
 
     scene : a Scene, dict or path.  x, y : IMAGE coordinates (column from the
     left, row from the top, as the PNG is seen).  The other options are
-    `softras.pipeline.render_scene`'s (its default box resolve; at most 32
+    `softras.renderer.render_scene`'s (its default box resolve; at most 32
     samples, one rasterizer pass).
 
     Returns a JSON-able dict: ``pixel`` (image and window coordinates),
@@ -666,7 +666,7 @@ def _texture_lines(tex: dict, what: str) -> list[str]:
            f"d/dx {_f(tex['ddx'], 6)}, d/dy {_f(tex['ddy'], 6)}"]
     if "anisotropic" in tex:
         out.append(f"    anisotropic filtering (max_anisotropy {tex['anisotropic']}): "
-                   "see softras.texture.sample_anisotropic; no per-texel breakdown")
+                   "see softras.pipeline.texture.sample_anisotropic; no per-texel breakdown")
     else:
         lam = f"lambda = log2 rho {_f(tex['lambda'])}"
         if "lambda_llvmpipe" in tex:

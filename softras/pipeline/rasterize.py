@@ -1,6 +1,6 @@
 """Rasterize stage: edge-function coverage per sample -> fragments.
 
-For every set-up triangle (see `softras.setup`), every sample of every pixel in
+For every set-up triangle (see `softras.pipeline.setup`), every sample of every pixel in
 its bounding box is tested against the three edge functions
 ``E_i = A_i (X - X0_i) + B_i (Y - Y0_i)`` in raster units: inside when every E_i > 0, or
 E_i == 0 on an inclusive edge (the fill rule).  In gl precision the values
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .setup import TriangleSetup
+from softras.pipeline.setup import TriangleSetup
 
 BLOCK = 8  # pixels per block side for the hierarchical test
 
@@ -159,7 +159,7 @@ def rasterize(setup: TriangleSetup, offsets: np.ndarray, unit: float) -> Fragmen
     """Cover the set-up triangles; return their fragments in draw order.
 
     offsets : (S, 2) sample offsets in raster units (S <= 32), from
-    `softras.setup.sample_offsets`; unit : raster units per pixel.
+    `softras.pipeline.setup.sample_offsets`; unit : raster units per pixel.
     """
     if len(offsets) > 32:
         raise ValueError("at most 32 samples per pixel per pass")

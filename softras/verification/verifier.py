@@ -6,7 +6,7 @@
 * **strict** -- softras's contract with the implementation it reproduces bit
   for bit (Mesa 22.3 llvmpipe): the scene's tolerance (per-pixel threshold,
   fraction of bad pixels, SSIM) over the whole image; where it fails only on
-  the pixels of the ambiguity mask (:mod:`softras.ambiguity`) the verdict is
+  the pixels of the ambiguity mask (:mod:`softras.verification.ambiguity`) the verdict is
   a quality warning. This is :func:`judge_strict`.
 * **spec** -- per-pixel bounds of what *any* conformant GL implementation may
   draw (:func:`spec_bounds`), derived from the GL 4.6 core specification and
@@ -37,7 +37,7 @@ sample positions      section 14.3.1: where the reference GL reports
 tie rule              section 14.6.1 asks only that a sample exactly on an
                       edge shared by two polygons goes to exactly one: the
                       three other consistent rules beside llvmpipe's
-                      left-bottom (softras.setup.TIE_RULES).
+                      left-bottom (softras.pipeline.setup.TIE_RULES).
 depth ties            section 14.6.1 / 17.3.4: depth is interpolated and
                       rounded by the implementation: ties between surfaces
                       at equal depth may break either way (the scene with
@@ -48,7 +48,7 @@ lines                 section 14.5.1, rule 1: each of a line's fragments may
                       neighbouring pixels, and removed: any one fragment may
                       have moved away).
 textures              section 8.14 (LOD approximations, coordinate and filter
-                      precision, mip generation): :mod:`softras.texture_bounds`
+                      precision, mip generation): :mod:`softras.pipeline.texture_bounds`
                       via ``render_scene(texture_bounds="lo" | "hi")``.
 colour conversion     section 2.3.5.2: a float colour is converted to one of
                       the two nearest 8-bit values: 1/255.
@@ -257,7 +257,7 @@ def _lines_moved(scene, dx: float, dy: float):
     """The scene with its line draws (only) moved by (dx, dy) window pixels.
 
     world' = (P V)^-1 T (P V) world, where T moves clip x by 2 dx / W * w
-    (as :func:`softras.ambiguity.shifted_scene` does for the whole picture).
+    (as :func:`softras.verification.ambiguity.shifted_scene` does for the whole picture).
     """
     move = np.identity(4)
     move[0, 3] = 2.0 * dx / scene.width
@@ -306,7 +306,7 @@ def _gl_positions(scene, capabilities: dict):
     places = (capabilities.get("sample_positions") or {}).get(str(scene.samples))
     if places is None:
         return None
-    from softras.sampling import sample_positions
+    from softras.pipeline.sampling import sample_positions
 
     try:
         own = sample_positions(scene.samples)
@@ -328,7 +328,7 @@ def _as_unit(image: np.ndarray) -> np.ndarray:
 
 
 def _default_render(scene, **options) -> np.ndarray:
-    from softras.pipeline import render_scene
+    from softras.renderer import render_scene
 
     return render_scene(scene, **options)
 
@@ -346,7 +346,7 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
         GL_SUBPIXEL_BITS the specification allows, table 23.53).
     render : callable, optional
         ``render(scene, **options) -> (H, W, 4)`` picture; default
-        :func:`softras.pipeline.render_scene` (tests pass broken ones).
+        :func:`softras.renderer.render_scene` (tests pass broken ones).
 
     Returns
     -------
@@ -360,7 +360,7 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
     shift = np.sqrt(2.0) * 2.0 ** -bits
     textured = any(d.material.texture is not None or getattr(d.material, "normal_map", None)
                    or getattr(d.material, "bump_map", None) for d in scene.draws)
-    from softras.ambiguity import shifted_scene
+    from softras.verification.ambiguity import shifted_scene
 
     variants: list[tuple[str, object, dict]] = [
         ("gl", scene, {"precision": "gl"}),
@@ -422,7 +422,7 @@ def _stage_at(scene, ids: np.ndarray | None, selection: np.ndarray) -> str:
     """Name the draws under the failing pixels (the stages that shape their colour)."""
     if ids is None or not selection.any():
         return ""
-    from softras.ambiguity import draw_features
+    from softras.verification.ambiguity import draw_features
 
     draws, counts = np.unique(ids[selection], return_counts=True)
     named = []
@@ -452,7 +452,7 @@ def judge_spec(scene, image: np.ndarray, reference: np.ndarray, tolerance: dict,
     -------
     (verdict, reasons, figures, images) as :func:`judge_strict`.
     """
-    from softras.metrics import compare
+    from softras.verification.metrics import compare
 
     out_image, excess_image = _outside(image, bounds)
     out_reference, excess_reference = _outside(reference, bounds)
@@ -527,12 +527,12 @@ def judge_strict(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, so
     tolerance : dict
         ``threshold``, ``max_bad_fraction``, ``min_ssim``.
     soft_ids, gl_ids : tuple, optional
-        :func:`softras.ambiguity.decode_ids` of both renderers' primitive-ID
+        :func:`softras.verification.ambiguity.decode_ids` of both renderers' primitive-ID
         pictures (for the stage of a failure).
     soft_last, gl_last : numpy.ndarray, optional
         Primitive numbers of both renderers' ID pictures without depth test
-        (tell coverage from depth; :func:`softras.ambiguity.classify_differences`).
-    ambiguity : softras.ambiguity.Ambiguity, optional
+        (tell coverage from depth; :func:`softras.verification.ambiguity.classify_differences`).
+    ambiguity : softras.verification.ambiguity.Ambiguity, optional
         The mask; without it nothing is excused.
 
     Returns
@@ -545,8 +545,8 @@ def judge_strict(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, so
     images : dict
         ``diff``, ``ssim``, ``flip``, ``where`` pictures.
     """
-    from softras.ambiguity import classify_differences
-    from softras.metrics import compare, error_map_image, pixel_difference
+    from softras.verification.ambiguity import classify_differences
+    from softras.verification.metrics import compare, error_map_image, pixel_difference
 
     strict = compare(soft, gl, flip=True, **tolerance)
     pixel_diff = pixel_difference(soft, gl)
@@ -603,7 +603,7 @@ def judge_strict(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, so
 
 def draw_ids(scene, render: Callable[..., np.ndarray] | None = None) -> np.ndarray:
     """(H, W) int: the draw softras sees at each pixel (-1: background), row 0 = top."""
-    from softras.ambiguity import decode_ids, id_scene, primitive_offsets
+    from softras.verification.ambiguity import decode_ids, id_scene, primitive_offsets
 
     render = render or _default_render
     numbers = decode_ids(np.asarray(render(id_scene(scene), precision="gl")), scene)[0]
@@ -654,7 +654,7 @@ def _picture(value, name: str, shape: tuple[int, int]) -> np.ndarray:
         if path.suffix == ".npy":
             value = np.load(path, allow_pickle=False)
         else:
-            from softras.imageio import read_png
+            from softras.scene.imageio import read_png
 
             value = read_png(path)
     value = np.asarray(value)
@@ -709,7 +709,7 @@ def verify(scene, image, reference, *, profile: str = "spec", capabilities: dict
         verdict, reasons, figures, images = judge_spec(scene, image, reference, tolerance, bounds,
                                                        draw_ids=draw_ids(scene))
         return Verification(verdict, chosen, reasons, figures, images, bounds)
-    from softras.ambiguity import ambiguity_mask, as_uint8
+    from softras.verification.ambiguity import ambiguity_mask, as_uint8
 
     soft, gl = as_uint8(image), as_uint8(reference)
     verdict, reasons, figures, images = judge_strict(scene, soft, gl, tolerance,

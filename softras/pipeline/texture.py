@@ -8,8 +8,8 @@ The lecture's sampling operation, one readable function per step::
 Texel data
 ----------
 The premultiplied mip chain of a scene texture is scene data
-(`softras.texels`, read through ``softras.scene.Texture.levels``; glref uploads
-level 0 and GL generates the rest, which `softras.texels.mip_chain` reproduces
+(`softras.scene.texels`, read through ``softras.scene.Texture.levels``; glref uploads
+level 0 and GL generates the rest, which `softras.scene.texels.mip_chain` reproduces
 for llvmpipe byte for byte).  :func:`prepare` pairs it with the sampler state in a
 :class:`MipTexture`.
 
@@ -56,7 +56,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .scene import MIPMAP_FILTERS, Texture
+from softras.scene import MIPMAP_FILTERS, Texture
+from softras.scene.texels import bilinear, linear_float_addresses, wrap  # noqa: F401  (wrap: texture.wrap)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,23 +106,6 @@ def prepare(texture: Texture) -> MipTexture:
 
 
 # ----------------------------------------------------------------------------- wrap
-
-
-def wrap(i: np.ndarray, size: int, mode: str) -> np.ndarray:
-    """Integer texel index -> index inside [0, size) (GL 4.5 section 8.14.2).
-
-    repeat : i mod size.  clamp_to_edge : clamp to [0, size - 1].
-    mirrored_repeat : the texture mirrored every other period,
-    ``m = i mod 2 size; m if m < size else 2 size - 1 - m``.
-    """
-    if mode == "repeat":
-        return np.mod(i, size)
-    if mode == "clamp_to_edge":
-        return np.clip(i, 0, size - 1)
-    if mode == "mirrored_repeat":
-        m = np.mod(i, 2 * size)
-        return np.where(m < size, m, 2 * size - 1 - m)
-    raise ValueError(f"unknown wrap mode {mode!r}")
 
 
 # Wrap modes as integers for the compiled kernels.
@@ -250,9 +234,7 @@ def linear_addresses(s: np.ndarray, size: int, mode: str, fixed8: bool):
     point, i0 = that >> 8, weight = (that & 255) as an integer 0..255.
     """
     if not fixed8:
-        u = s * size - 0.5
-        i0 = np.floor(u)
-        return wrap(i0.astype(np.int64), size, mode), wrap(i0.astype(np.int64) + 1, size, mode), u - i0
+        return linear_float_addresses(s, size, mode)
     s32 = s.astype(np.float32)
     pot = size & (size - 1) == 0
     if mode == "repeat" and not pot:
@@ -285,17 +267,14 @@ def filter_level(level: np.ndarray, s: np.ndarray, t: np.ndarray, image_filter: 
         i = nearest_addresses(s, w, wrap_s, gl)
         j = nearest_addresses(t, h, wrap_t, gl)
         return level[j, i].astype(np.int64 if fixed8 else np.float64)
+    if not fixed8:
+        return bilinear(level, s, t, wrap_s, wrap_t)
     i0, i1, a = linear_addresses(s, w, wrap_s, fixed8)
     j0, j1, b = linear_addresses(t, h, wrap_t, fixed8)
-    if fixed8:
-        t00, t10 = level[j0, i0].astype(np.int64), level[j0, i1].astype(np.int64)
-        t01, t11 = level[j1, i0].astype(np.int64), level[j1, i1].astype(np.int64)
-        a, b = a[:, None], b[:, None]
-        return lerp8(b, lerp8(a, t00, t10), lerp8(a, t01, t11))
-    t00, t10 = level[j0, i0].astype(np.float64), level[j0, i1].astype(np.float64)
-    t01, t11 = level[j1, i0].astype(np.float64), level[j1, i1].astype(np.float64)
+    t00, t10 = level[j0, i0].astype(np.int64), level[j0, i1].astype(np.int64)
+    t01, t11 = level[j1, i0].astype(np.int64), level[j1, i1].astype(np.int64)
     a, b = a[:, None], b[:, None]
-    return (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11
+    return lerp8(b, lerp8(a, t00, t10), lerp8(a, t01, t11))
 
 
 def uses_fixed_point(texture: MipTexture, gl: bool) -> bool:

@@ -1,13 +1,13 @@
 """The gl-precision fast path: one fused, tiled, compiled kernel per draw.
 
-`softras.pipeline` is the readable reference: every stage materialises its
+`softras.pipeline.render` is the readable reference: every stage materialises its
 output (clipped triangles, set-up triangles, a fragment list, per-fragment
 attributes) as numpy arrays.  This module computes *the same numbers* (bit for
 bit, see tests/test_fastpath.py) for the draws that need only the common
 features, without the intermediate buffers:
 
-1. vertex: `softras.vertex.to_clip` (a compiled float32 loop, per vertex);
-2. clip: `softras.clip.clip_triangles` (its crossing triangles go through a
+1. vertex: `softras.pipeline.vertex.to_clip` (a compiled float32 loop, per vertex);
+2. clip: `softras.pipeline.clip.clip_triangles` (its crossing triangles go through a
    compiled kernel in gl precision);
 3. setup (`_setup`, compiled, one pass over the clipped triangles): viewport
    transform with llvmpipe's fused multiply-add, 1/256 snapping, area and
@@ -21,7 +21,7 @@ features, without the intermediate buffers:
    so tiles never race on the framebuffer); within a tile the triangles in
    draw order; per triangle the 8x8 blocks of its bounding box inside the
    tile with the exact early-out / early-in corner test of
-   `softras.rasterize`; the covered pixels listed as "lanes" (below the
+   `softras.pipeline.rasterize`; the covered pixels listed as "lanes" (below the
    tile kernel) and shaded by loops over the lanes that compile to SIMD:
    depth at each sample (plane equation, 24-bit rounding), depth test,
    perspective-correct colour, texture (`_textured_block`: the block's
@@ -58,12 +58,12 @@ os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
-from . import clip as clip_stage
-from . import ops, setup, texture, vertex
-from .ops import blend_byte, unorm8
-from .scene import Scene, ordered_draws
-from .texels import levels_buffer
-from .texture import WRAP_CODES, wrap_index
+from softras.pipeline import clip as clip_stage
+from softras.pipeline import ops, setup, texture, vertex
+from softras.pipeline.ops import blend_byte, unorm8
+from softras.scene import Scene, ordered_draws
+from softras.scene.texels import levels_buffer
+from softras.pipeline.texture import WRAP_CODES, wrap_index
 
 TILE = 64          # pixels per tile side (binning and the parallel unit)
 BLOCK = 8          # pixels per block side (hierarchical coverage test)
@@ -93,7 +93,7 @@ FAST_SAMPLES = (1, 4)
 def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | None) -> str | None:
     """Why ``scene`` must take the general pipeline, or None when this path renders it.
 
-    The caller (`softras.pipeline.render_scene`) has already checked the
+    The caller (`softras.renderer.render_scene`) has already checked the
     options this path does not look at (RGBA8 framebuffer, GL's sample
     pattern).
     """
@@ -327,7 +327,7 @@ def _window_vertices(clip_pos, width, height, vertex_f, vertex_i):
 def _window_corner(x, y, z, w, fused, width, height):
     """One clip-space corner (x, y, z, w) -> window (x, y, z) as float32
     values, 1/w (float32) and the corner snapped to 1/256 pixel (x, y int64),
-    as `softras.setup` computes them in gl precision: llvmpipe's viewport
+    as `softras.pipeline.setup` computes them in gl precision: llvmpipe's viewport
     transform with a fused multiply-add for an input vertex (``fused``), an
     unfused one for a vertex made by the clipper."""
     oow = np.float32(1.0) / np.float32(w)
@@ -351,9 +351,9 @@ def _window_corner(x, y, z, w, fused, width, height):
 @numba.njit(cache=True, error_model="numpy")
 def _setup_range(start, stop, vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height,
                  cull, offsets, tri_f, tri_i, bbox, attributes):
-    """`softras.setup.setup_triangles` (gl precision) and the depth plane of
-    `softras.interpolate.depth_at_samples`, for the clipped triangles start
-    to stop - 1 listed by `softras.clip.triangle_list_gl` (source, slot,
+    """`softras.pipeline.setup.setup_triangles` (gl precision) and the depth plane of
+    `softras.pipeline.interpolate.depth_at_samples`, for the clipped triangles start
+    to stop - 1 listed by `softras.pipeline.clip.triangle_list_gl` (source, slot,
     fan_clip, fan_weights), the input vertices' window corners given
     (`_window_vertices`).
 
@@ -516,7 +516,7 @@ def _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, px, py):
 @numba.njit(cache=True, inline="always")
 def _inside3(sx, sy, a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1, a2, b2, ex2, ey2, k2):
     """Whether sample (sx, sy) (1/256 px) is inside all three integer edge
-    functions of `softras.rasterize` (k = 1 for an exclusive edge: e > 0,
+    functions of `softras.pipeline.rasterize` (k = 1 for an exclusive edge: e > 0,
     k = 0 for an inclusive one: e >= 0)."""
     return ((a0 * (sx - ex0) + b0 * (sy - ey0) - k0) | (a1 * (sx - ex1) + b1 * (sy - ey1) - k1)
             | (a2 * (sx - ex2) + b2 * (sy - ey2) - k2)) >= 0
@@ -779,10 +779,10 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
           offsets, positions, color32, depth, state, tex, buffers, n_samples, textured):
     """One 64x64 tile: its triangles in draw order; per triangle the 8x8 blocks
     of its bounding box inside the tile with the exact early-out / early-in
-    corner test of `softras.rasterize`; then in lanes: the covered pixels of
+    corner test of `softras.pipeline.rasterize`; then in lanes: the covered pixels of
     an untextured triangle (`_flat_block`, from LANES of them and after its
     last block), the covered quads of a textured one per block
-    (`_textured_block`).  The per-pixel arithmetic is `softras.pipeline`'s,
+    (`_textured_block`).  The per-pixel arithmetic is `softras.pipeline.render`'s,
     operation for operation.
 
     state : (depth function, depth write, blend mode) codes and whether the

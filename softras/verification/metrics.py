@@ -186,7 +186,7 @@ class Comparison:
 def _as_image(image, name: str) -> np.ndarray:
     """Return ``image`` as a uint8 (H, W, C) array, reading it if it is a path."""
     if isinstance(image, (str, os.PathLike)):
-        from softras.imageio import read_png
+        from softras.scene.imageio import read_png
 
         image = read_png(image)
     array = np.asarray(image)
@@ -351,7 +351,7 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
     a, b : numpy.ndarray or str or os.PathLike
         ``uint8`` images of the same shape, usually ``(H, W, 4)`` RGBA as
         returned by :func:`softras.render`; ``(H, W, 3)`` and ``(H, W)`` are
-        accepted too. A path is read with :func:`softras.imageio.read_png`.
+        accepted too. A path is read with :func:`softras.scene.imageio.read_png`.
         Float images (an rgba32f render) are compared unrounded, in 1/255
         units (see :func:`_compare_float`).
     threshold : int, optional
@@ -379,7 +379,7 @@ def compare(a, b, *, threshold: int = 2, max_bad_fraction: float = 0.001, min_ss
         If an image is not uint8, or a tolerance is out of range.
     FlipUnavailable
         If ``flip=True`` and ``flip-evaluator`` is not installed.
-    softras.imageio.ImageError
+    softras.scene.imageio.ImageError
         If a path cannot be read as PNG (a subclass of ValueError).
 
     Notes

@@ -113,7 +113,7 @@ def unorm8(v):
     saturated to [0, 255] by the pack instructions; NaN gives 0.  softras's
     float64 colour is first rounded to float32, as the shader's output is.
     Returns an int in [0, 255].  Written without branches (selects), so that
-    a compiled loop calling it vectorises (`softras.fastpath`'s lanes).
+    a compiled loop calling it vectorises (`softras.kernels.draw`'s lanes).
     """
     v32 = np.float32(v)
     clamped = min(v32 if v32 > 0 else np.float32(0.0), np.float32(1.0))     # negative or NaN -> 0

@@ -110,7 +110,7 @@ def bump_normals(height_texture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarra
     """Tangent-space normals from a height texture by central differences.
 
     The height h is the red channel of the texture sampled with its own
-    filters (`softras.texture.sample`, the uv's derivatives ``ddx``, ``ddy``
+    filters (`softras.pipeline.texture.sample`, the uv's derivatives ``ddx``, ``ddy``
     for all four samples) one level-0 texel either side of the fragment's
     (s, t) = ``st`` (F, 2)::
 
@@ -123,7 +123,7 @@ def bump_normals(height_texture, st: np.ndarray, ddx: np.ndarray, ddy: np.ndarra
     scale 255 tilts it by 45 degrees).  In gl precision the offsets are added
     in float32, as glref's shader does.  Returns (F, 3), not normalised.
     """
-    from . import texture as texture_stage
+    from softras.pipeline import texture as texture_stage
     width, height = height_texture.size
     st = np.asarray(st, np.float64)
     if precision == "gl":

@@ -8,13 +8,15 @@ framebuffer.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from . import clip as clip_stage
-from . import fastpath, fragment, interpolate, lines, ops, rasterize, sampling, setup, texture, vertex
-from . import texture_beyond
-from . import texture_bounds as texbounds
-from .scene import Scene, ordered_draws
+from softras.pipeline import clip as clip_stage
+from softras.pipeline import fragment, interpolate, lines, ops, rasterize, sampling, setup, texture, vertex
+from softras.pipeline import texture_beyond
+from softras.pipeline import texture_bounds as texbounds
+from softras.scene import Scene, ordered_draws
 
 PRECISIONS = ("gl", "exact")
 
@@ -33,7 +35,7 @@ FRAMEBUFFERS = ("rgba8", "rgba32f")
 
 
 def sample_positions(samples: int, pattern: str | None = None, seed: int = 0) -> np.ndarray:
-    """(S, 2) sample positions in [0, 1)^2 (see `softras.sampling`).
+    """(S, 2) sample positions in [0, 1)^2 (see `softras.pipeline.sampling`).
 
     pattern None = GL's: 1 sample = the pixel centre, 4 = llvmpipe's MSAA
     positions; "grid", "rotated_grid", "jittered", "halton", "poisson" are
@@ -108,11 +110,11 @@ def phong_attributes(persp, corners, t, base, world, draw):
 def mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal, precision,
                     texture_fixed_point, texture_bounds=None):
     """Phong shading with a normal or bump map: (F, 3) world normals perturbed
-    per fragment (softras.fragment: tangent frames from Mesh.tangents,
+    per fragment (softras.pipeline.fragment: tangent frames from Mesh.tangents,
     the map sampled like any texture, with the uv's derivatives).
 
     texture_bounds "lo" / "hi": the map sampled at the lowest / highest level
-    of detail GL permits (`softras.texture_bounds.variant_derivatives`): the
+    of detail GL permits (`softras.pipeline.texture_bounds.variant_derivatives`): the
     normal goes through lighting, so this is an envelope by variants, not a
     bound."""
     mesh, material = draw.mesh, draw.material
@@ -133,39 +135,36 @@ def mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
     return fragment.perturb_normals(normal, tangent, mapped)
 
 
-def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = None,
-                 pattern: str | None = None, seed: int = 0, resolve_filter: str = "box",
-                 framebuffer: str | None = None, clipping: str | None = None,
-                 texture_fixed_point: bool = True, fast_path: bool = True,
-                 texture_filter=None, texture_bounds: str | None = None,
-                 tie_rule: str = "left_bottom") -> np.ndarray:
+def render_stages(scene: Scene, *, precision: str = "gl", samples: int | None = None,
+                  pattern: str | None = None, seed: int = 0, resolve_filter: str = "box",
+                  framebuffer: str | None = None, clipping: str | None = None,
+                  texture_fixed_point: bool = True, texture_filter=None,
+                  texture_bounds: str | None = None, tie_rule: str = "left_bottom") -> np.ndarray:
     """Render a loaded scene; returns the picture, row 0 = top.
 
     precision : "gl" (llvmpipe's fixed point, float32 vertex math, RGBA8 and
         24-bit depth rounding) or "exact" (float64 throughout, no snapping).
     samples : samples per pixel, overrides ``scene.samples``; 1..1024.
-    pattern : sample pattern (`softras.sampling`); None = GL's (1 or 4 samples);
+    pattern : sample pattern (`softras.pipeline.sampling`); None = GL's (1 or 4 samples);
         or an (S, 2) array of positions (a GL's own, y up).
     seed : seed of the random patterns ("jittered", "poisson").
     resolve_filter : "box" (the pixel's own samples) or "tent" (a 2-pixel-wide
-        tent over the 3 x 3 neighbourhood's samples), see `softras.ops.resolve`.
+        tent over the 3 x 3 neighbourhood's samples), see `softras.pipeline.ops.resolve`.
     framebuffer : "rgba8" or "rgba32f", overrides ``scene.framebuffer``.
     clipping : "llvmpipe" (default in gl) or "guard_band" (default in exact).
     texture_fixed_point : gl precision: filter RGBA8 textures with repeat /
         clamp_to_edge wrapping in llvmpipe's 8.8 fixed point, as llvmpipe does
         by default; False = float weights, as llvmpipe with
-        ``GALLIVM_PERF=no_aos_sampling`` (see `softras.texture`).
-    fast_path : let `softras.fastpath` render the scenes it supports (the
-        same bytes, from one fused kernel per draw); False: always the stages.
+        ``GALLIVM_PERF=no_aos_sampling`` (see `softras.pipeline.texture`).
     texture_filter : None, "ripmap", "ewa", "level0" or a dict {texture name:
         filter}: replaces the min filter of every (or the named) texture with
-        a softras-only filter (see `softras.texture_beyond`); glref ignores it.
+        a softras-only filter (see `softras.pipeline.texture_beyond`); glref ignores it.
     texture_bounds : None, "lo" or "hi": every texture lookup returns the
         lower / upper bound of what a conformant GL implementation may return
-        (`softras.texture_bounds.lookup_bounds`; stages only, no texture_filter);
+        (`softras.pipeline.texture_bounds.lookup_bounds`; stages only, no texture_filter);
         normal and bump maps are sampled at the lowest / highest permitted
         level of detail instead (an envelope by variants, not a bound).
-    tie_rule : which edges own a sample exactly on them (`softras.setup.TIE_RULES`):
+    tie_rule : which edges own a sample exactly on them (`softras.pipeline.setup.TIE_RULES`):
         "left_bottom" (llvmpipe's, default) or another rule GL allows (stages only).
 
     Returns (H, W, 4) premultiplied RGBA: uint8 for an rgba8 framebuffer,
@@ -173,56 +172,91 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     More than 32 samples are rendered in passes of <= 32 (`sample_passes`);
     a per-sample colour buffer over MAX_SAMPLE_BYTES is refused (ValueError).
     """
-    if precision not in PRECISIONS:
-        raise ValueError(f"precision must be one of {PRECISIONS}, not {precision!r}")
-    framebuffer = framebuffer or scene.framebuffer
-    if framebuffer not in FRAMEBUFFERS:
-        raise ValueError(f"framebuffer must be one of {FRAMEBUFFERS}, not {framebuffer!r}")
-    if resolve_filter not in ops.RESOLVE_FILTERS:
-        raise ValueError(f"resolve_filter must be one of {ops.RESOLVE_FILTERS}, not {resolve_filter!r}")
-    texture_beyond.check_texture_filter(texture_filter, scene.textures)
-    if texture_bounds not in (None,) + texbounds.SIDES:
-        raise ValueError(f"texture_bounds must be None, 'lo' or 'hi', not {texture_bounds!r}")
-    if tie_rule not in setup.TIE_RULES:
-        raise ValueError(f"tie_rule must be one of {', '.join(setup.TIE_RULES)}, not {tie_rule!r}")
-    if texture_bounds is not None and texture_filter is not None:
-        raise ValueError("texture_bounds bounds GL's filters: it cannot be combined with texture_filter")
-    positions = sample_positions(samples or scene.samples, pattern, seed)
-    gl_pattern = pattern is None or (isinstance(pattern, str) and pattern == "gl")
-    n_samples = len(positions)
-    size = scene.width * scene.height * n_samples * 4 * 8
-    if size > MAX_SAMPLE_BYTES:
-        raise ValueError(f"{scene.width}x{scene.height} pixels x {n_samples} samples need "
-                         f"{size / 2**30:.1f} GiB of sample colour (limit "
-                         f"{MAX_SAMPLE_BYTES / 2**30:.0f} GiB): use fewer samples or a smaller image")
-    rgba8 = framebuffer == "rgba8"
+    job = Job.of(scene, precision=precision, samples=samples, pattern=pattern, seed=seed,
+                 resolve_filter=resolve_filter, framebuffer=framebuffer, clipping=clipping,
+                 texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
+                 texture_bounds=texture_bounds, tie_rule=tie_rule)
+    return resolve(job, render_samples(scene, job))
+
+
+@dataclass(frozen=True)
+class Job:
+    """A render's options, checked, and the sample positions they give.
+
+    positions : (S, 2) sample positions in [0, 1)^2 of a pixel (GL window
+    space, y up); gl_pattern : whether they are GL's own (1 or 4 samples);
+    rgba8 : the framebuffer is RGBA8 (else rgba32f).  The other fields are
+    `render_stages`' options of the same names.
+    """
+    precision: str
+    positions: np.ndarray
+    gl_pattern: bool
+    rgba8: bool
+    resolve_filter: str
+    clipping: str | None
+    texture_fixed_point: bool
+    texture_filter: object
+    texture_bounds: str | None
+    tie_rule: str
+
+    @classmethod
+    def of(cls, scene: Scene, *, precision, samples, pattern, seed, resolve_filter, framebuffer, clipping,
+           texture_fixed_point, texture_filter, texture_bounds, tie_rule) -> "Job":
+        """Check the options against the scene (ValueError with the reason)."""
+        if precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {PRECISIONS}, not {precision!r}")
+        framebuffer = framebuffer or scene.framebuffer
+        if framebuffer not in FRAMEBUFFERS:
+            raise ValueError(f"framebuffer must be one of {FRAMEBUFFERS}, not {framebuffer!r}")
+        if resolve_filter not in ops.RESOLVE_FILTERS:
+            raise ValueError(f"resolve_filter must be one of {ops.RESOLVE_FILTERS}, not {resolve_filter!r}")
+        texture_beyond.check_texture_filter(texture_filter, scene.textures)
+        if texture_bounds not in (None,) + texbounds.SIDES:
+            raise ValueError(f"texture_bounds must be None, 'lo' or 'hi', not {texture_bounds!r}")
+        if tie_rule not in setup.TIE_RULES:
+            raise ValueError(f"tie_rule must be one of {', '.join(setup.TIE_RULES)}, not {tie_rule!r}")
+        if texture_bounds is not None and texture_filter is not None:
+            raise ValueError("texture_bounds bounds GL's filters: it cannot be combined with texture_filter")
+        positions = sample_positions(samples or scene.samples, pattern, seed)
+        n_samples = len(positions)
+        size = scene.width * scene.height * n_samples * 4 * 8
+        if size > MAX_SAMPLE_BYTES:
+            raise ValueError(f"{scene.width}x{scene.height} pixels x {n_samples} samples need "
+                             f"{size / 2**30:.1f} GiB of sample colour (limit "
+                             f"{MAX_SAMPLE_BYTES / 2**30:.0f} GiB): use fewer samples or a smaller image")
+        return cls(precision=precision, positions=positions,
+                   gl_pattern=pattern is None or (isinstance(pattern, str) and pattern == "gl"),
+                   rgba8=framebuffer == "rgba8", resolve_filter=resolve_filter, clipping=clipping,
+                   texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
+                   texture_bounds=texture_bounds, tie_rule=tie_rule)
+
+
+def render_samples(scene: Scene, job: Job) -> np.ndarray:
+    """The per-sample colour buffer (H, W, S, 4) of every draw, GL's y-up rows,
+    premultiplied: float64 k/255 values for rgba8 in gl precision, float32 for
+    rgba32f in gl precision, float64 in exact (`_render_pass`, in passes of
+    at most MAX_PASS_SAMPLES samples)."""
+    n_samples = len(job.positions)
     color = None
-    # Dispatch: a gl-precision RGBA8 scene at GL's sample positions that uses
-    # only what `softras.fastpath` implements gets the same bytes from its
-    # fused kernel (tests/test_fastpath.py).  A new option must either send
-    # scenes that use it past this test or be implemented there.
-    fast = (fast_path and rgba8 and gl_pattern and texture_filter is None
-            and texture_bounds is None and tie_rule == "left_bottom"
-            and fastpath.unsupported(scene, precision=precision, samples=n_samples, clipping=clipping) is None)
-    if fast:
-        stored = fastpath.render_samples(scene, positions, texture_fixed_point=texture_fixed_point,
-                                         reuse=True)        # copied below
-        if resolve_filter == "box":                 # GL's resolve, from the bytes
-            return ops.resolve_llvmpipe_bytes(stored)
-        color = stored / 255.0                      # the stages' k/255 sample values
-    for start, stop in ([] if fast else sample_passes(n_samples)):
-        part = _render_pass(scene, positions[start:stop], precision=precision, rgba8=rgba8,
-                            clipping=clipping, texture_fixed_point=texture_fixed_point,
-                            texture_filter=texture_filter, texture_bounds=texture_bounds,
-                            tie_rule=tie_rule)
+    for start, stop in sample_passes(n_samples):
+        part = _render_pass(scene, job.positions[start:stop], precision=job.precision, rgba8=job.rgba8,
+                            clipping=job.clipping, texture_fixed_point=job.texture_fixed_point,
+                            texture_filter=job.texture_filter, texture_bounds=job.texture_bounds,
+                            tie_rule=job.tie_rule)
         if color is None:
             color = np.empty(part.shape[:2] + (n_samples, 4), part.dtype)
         color[:, :, start:stop] = part
-    # GL's MSAA resolve (llvmpipe's float32 arithmetic) for GL's patterns in gl
-    # precision; the exact float64 mean otherwise.
-    arithmetic = "llvmpipe" if precision == "gl" and gl_pattern else "exact"
-    return ops.resolve(color, positions, filter=resolve_filter, arithmetic=arithmetic,
-                       output="uint8" if rgba8 else "float32")
+    return color
+
+
+def resolve(job: Job, color: np.ndarray) -> np.ndarray:
+    """The picture (H, W, 4), row 0 = top, from the per-sample colours
+    (H, W, S, 4) of `render_samples`: GL's MSAA resolve (llvmpipe's float32
+    arithmetic) for GL's patterns in gl precision, the exact float64 mean
+    otherwise (`softras.pipeline.ops.resolve`)."""
+    arithmetic = "llvmpipe" if job.precision == "gl" and job.gl_pattern else "exact"
+    return ops.resolve(color, job.positions, filter=job.resolve_filter, arithmetic=arithmetic,
+                       output="uint8" if job.rgba8 else "float32")
 
 
 def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: bool,
