@@ -5,7 +5,7 @@ plainest possible thing: one draw call per `Draw`, in `ordered_draws(scene)`
 order (`softras.scene`: `scene.draws`, or the lecture's opaque-then-sorted
 transparency order when the scene asks for it), with
 the GL state the scene asks for and small shaders specialised per feature set
-by `#define` (DESIGN.md sections 2 and 3).
+by `#define` (docs/design.md sections 2 and 4).
 
 Spaces: positions are model space; `u_mvp` = P @ V @ world maps them to clip
 space (computed in float64 on the CPU, uploaded as float32); GL does the rest
@@ -42,7 +42,7 @@ class NotSupported(ValueError):
     """The scene needs something this GL context does not offer (dEQP's
     NotSupported); str(e) is one line naming what."""
 
-# DESIGN.md section 5 depth_test names -> moderngl depth_func strings.
+# The scene format's depth_test names (docs/scene_format.md) -> moderngl depth_func strings.
 _DEPTH_FUNCS = {
     "never": "0", "less": "<", "equal": "==", "lequal": "<=",
     "greater": ">", "notequal": "!=", "gequal": ">=", "always": "1",

@@ -1,6 +1,6 @@
 """Fuzz the scene loader: mutated scenes must load or raise SceneError, nothing else.
 
-The property (issue 7): for any input, ``softras.load_scene`` either returns a
+The property (bad input never costs data): for any input, ``softras.load_scene`` either returns a
 ``Scene`` or raises ``SceneError`` with a one-line message -- never another
 exception, never a hang, never a huge allocation.  Inputs are the conformance
 scenes (``scenes/*.json``) mutated by hypothesis:

@@ -1,4 +1,5 @@
-"""Write the extreme conformance scenes, scenes/extreme_*.json (issue 7).
+"""Write the extreme conformance scenes, scenes/extreme_*.json (numerical
+stability at the extremes: docs/numerics.md).
 
 Each scene is generated here so that its numbers can be read as a formula
 (sub-pixel grids, quads at exact eye distances); the JSON files are the

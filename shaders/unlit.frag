@@ -1,6 +1,6 @@
 #version 330 core
 // glref fragment stage: colour = vertex colour x material colour, written
-// PREMULTIPLIED (rgb * a, a) as DESIGN.md section 3 requires, times the texel
+// PREMULTIPLIED (rgb * a, a) as docs/design.md section 4 requires, times the texel
 // (the texture holds premultiplied texels).
 // Specialised by #define (inserted by glref after the #version line):
 //   HAS_COLOR   a per-vertex colour arrives from the vertex stage

@@ -8,7 +8,7 @@ renders, with glref timed on the same scene in the same run, so the ratios
 are comparable on a noisy machine.  A render is timed end to end from the
 loaded `Scene` to the image (``softras.render(scene, **options)``; for glref
 ``softras.render(scene, backend="gl")``, which includes its upload and
-readback).  The issue's target is end to end *from the scene file*: for
+readback).  The figure that matters to a user is end to end *from the scene file*: for
 the gl level (`E2E_LEVEL`) each row also carries ``file_seconds`` and
 ``glref_file_seconds``, the medians of ``softras.render(load_scene(path))``
 and of ``softras.render(load_scene(path), backend="gl")`` on the scene written
@@ -272,7 +272,7 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
     return rows
 
 
-# The from-file figures are the target: at least E2E_MIN_PAIRS
+# The from-file figures are the headline (what a user waits for): at least E2E_MIN_PAIRS
 # interleaved (softras, glref) pairs while they fit in E2E_BUDGET seconds
 # (``runs`` pairs in any case).  On a noisy 2-core machine a median of 3 or 5
 # pairs of ~6 ms renders moves by +-10 % from one run to the next; of 21, by

@@ -1,8 +1,8 @@
 """Shared test fixtures.
 
 Tests marked ``gl`` need glref's headless OpenGL context.  A missing context
-is a failure, not a skip, unless ``SOFTRAS_ALLOW_NO_GL=1`` (DESIGN.md
-section 7).  glref.context is the one place a context is created.
+is a failure, not a skip, unless ``SOFTRAS_ALLOW_NO_GL=1`` (docs/design.md
+section 9).  glref.context is the one place a context is created.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Bad input never costs data (issue 7).
+"""Bad input never costs data: one line, exit 2, nothing on disk lost or half-written.
 
 Every kind of bad input -- malformed JSON, wrong types, NaN or infinite
 numbers, indices out of range, unknown keys, missing or corrupt texture files,

@@ -4,7 +4,7 @@ The conformance scenes bump_mapped_plane and displaced_grid run in
 test_scenes.py; these add what they do not cover: a normal-map PNG, curved
 tangent frames (a sphere), a mirroring world matrix (handedness), the float
 ("SoA") sampling path (mirrored_repeat) and displacement under Gouraud
-shading.  Bar: the issue's, at most 3/255 on >= 99.5 % of pixels and
+shading.  Bar: at most 3/255 on >= 99.5 % of pixels and
 SSIM >= 0.98; measured (llvmpipe 22.3.6) far inside it (see each test).
 """
 

@@ -1,6 +1,6 @@
 """Tests for the softras command line (softras.cli) and PNG I/O (softras.scene.imageio).
 
-Most tests run ``main([...])`` in-process. Exit statuses follow DESIGN.md
+Most tests run ``main([...])`` in-process. Exit statuses follow docs/design.md
 section 6: 0 success/pass, 1 comparison failed, 2 bad input or environment
 error with one line on stderr and no partial or clobbered output file.
 """

@@ -1,4 +1,4 @@
-"""Numerical extremes (issue 7): the scenes/extreme_*.json scenes against analytic answers.
+"""Numerical extremes (docs/numerics.md): the scenes/extreme_*.json scenes against analytic answers.
 
 tests/test_scenes.py already compares every extreme scene with glref within
 its tolerance (and exact precision with gl precision).  Here each scene is

@@ -1,4 +1,4 @@
-"""Tests of glref, the OpenGL reference renderer (DESIGN.md sections 3, 6, 7).
+"""Tests of glref, the OpenGL reference renderer (docs/design.md sections 4, 5, 9).
 
 Every scene here is built by hand so the expected pixels follow from GL's rules
 alone: an orthographic camera maps world x, y straight to window coordinates
@@ -24,7 +24,7 @@ pytestmark = pytest.mark.gl
 
 @pytest.fixture(scope="module", autouse=True)
 def gl_context():
-    """A missing GL context fails the tests unless SOFTRAS_ALLOW_NO_GL=1 (DESIGN.md 7)."""
+    """A missing GL context fails the tests unless SOFTRAS_ALLOW_NO_GL=1 (docs/design.md section 9)."""
     try:
         return glref.info()
     except glref.GLUnavailable as exc:
@@ -310,7 +310,7 @@ def test_unsupported_material_raises_before_rendering():
 
 
 def test_glref_imports_only_the_scene_model_from_softras():
-    """DESIGN.md section 1: imports go one way, glref may import softras.scene
+    """docs/design.md section 1: imports go one way, glref may import softras.scene
     (texels and tangents reach it as scene data: Texture.levels, Mesh.tangents)."""
     import ast
     from pathlib import Path

@@ -2,7 +2,7 @@
 
 Colours are linear RGBA in [0, 1].  A fragment's colour is
 vertex colour x material colour, output premultiplied (rgb * a, a), which is
-what the per-sample operations and the framebuffer hold (DESIGN.md section 3).
+what the per-sample operations and the framebuffer hold (docs/design.md section 4).
 """
 
 from __future__ import annotations

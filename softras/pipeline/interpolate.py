@@ -5,7 +5,7 @@ pixel centres at half-integers); llvmpipe also sets up its attribute planes
 from the unsnapped positions.
 
 Screen-space barycentrics ``lam`` weight the three vertices linearly in window
-space; depth z_w is interpolated with them (DESIGN.md: depth is linear in
+space; depth z_w is interpolated with them (docs/design.md section 4: depth is linear in
 screen space).  A vertex attribute is linear in clip space, not in window
 space, so it is interpolated with the perspective-corrected weights
 ``b_i = (lam_i / w_i) / sum_j (lam_j / w_j)``.

@@ -1,6 +1,6 @@
 """Line stage: clipping, setup and rasterization of width-1 lines (GL_LINES).
 
-A line goes through the same spaces as a triangle (DESIGN.md section 3):
+A line goes through the same spaces as a triangle (docs/design.md section 3):
 clip space -> `clip_lines` -> `softras.pipeline.setup.viewport_transform` (fused for
 the shader's vertices, unfused for the clipper's) -> window space ->
 `rasterize_lines` -> fragments, with a parameter ``t`` per fragment for

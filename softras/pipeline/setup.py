@@ -1,6 +1,6 @@
 """Setup stage: clip space -> window space, snapping, face culling, edge equations.
 
-Window coordinates follow GL (DESIGN.md section 3): ``x_w = (x_ndc + 1) W/2``,
+Window coordinates follow GL (docs/design.md section 3): ``x_w = (x_ndc + 1) W/2``,
 ``y_w = (y_ndc + 1) H/2`` (y grows upward), ``z_w = (z_ndc + 1)/2``; pixel
 (i, j) has its centre at (i + 0.5, j + 0.5).
 

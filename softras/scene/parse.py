@@ -1,4 +1,4 @@
-"""The scene model: scene format version 1 (DESIGN.md section 5), read and validated.
+"""The scene model: scene format version 1 (docs/scene_format.md), read and validated.
 
 :func:`load_scene` takes a JSON file path, a dict with the same keys, or an
 already loaded :class:`Scene` (returned as is).  Validation is strict: unknown
@@ -13,7 +13,7 @@ All matrices are float64 in the column-vector convention
 file are row-major (the first four numbers are the first row).  Arrays in the
 loaded scene are read-only.
 
-Extensions to the format (DESIGN.md allows them; the section-5 keys keep their
+Extensions to the original version-1 format (every original key keeps its
 meaning):
 
 - top-level ``"description"``: a free text string (:attr:`Scene.description`);

@@ -10,7 +10,7 @@ identical texels.  glref needs no module of softras but `softras.scene`.
 
 - :func:`source_texels` reads a PNG through Pillow, or generates a procedural
   texture (checker, gradient, noise, bumps), as straight RGBA8, row 0 = the top
-  of the image = v 0 (DESIGN.md section 3).
+  of the image = v 0 (docs/design.md section 3).
 - :func:`premultiply_rgba8` premultiplies at load (before mip generation):
   ``c' = round(c * a / 255)``.
 - :func:`mip_chain` builds the levels: sizes ``max(1, floor(size / 2))`` down

@@ -1,6 +1,6 @@
 """Golden images: glref's renderings of the conformance scenes, kept in git.
 
-``golden/`` (DESIGN.md section 1) holds one PNG per scene of ``scenes/``,
+``golden/`` (docs/design.md section 1) holds one PNG per scene of ``scenes/``,
 ``golden/<scene stem>.png``, rendered by glref, and a ``manifest.json`` that
 says where they came from and what they contain::
 

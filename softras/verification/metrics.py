@@ -1,7 +1,7 @@
 """Image comparison: SSIM, per-pixel tolerances and a difference heat map.
 
 :func:`compare` is how softras decides whether two renderings of the same scene
-agree (DESIGN.md section 6). Two measures must both pass:
+agree (docs/design.md section 7, tolerances). Two measures must both pass:
 
 * **Per-pixel tolerance.** For each pixel, the largest absolute difference over
   its four channels (R, G, B, A, in 0..255) is taken. A pixel is *bad* when
