@@ -34,6 +34,11 @@ anything else is a bug and keeps its traceback.
 
 Heavy modules (the pipeline, glref, scikit-image) are imported inside the
 commands, so ``softras --help`` stays fast.
+
+Why one module of ~990 lines: the argparse definitions, each command's
+handler and the shared error handling (one line, exit 2) are kept together
+so every command's flags, help and exit codes can be read in one file; the
+work itself is done by the layers below.
 """
 
 from __future__ import annotations

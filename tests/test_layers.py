@@ -175,3 +175,24 @@ def test_the_checks_fail_on_planted_imports():
     assert len(found) == 3
     assert sorted(circles(edges)) == [["softras.kernels.draw", "softras.verification.verifier"],
                                       ["softras.pipeline.clip", "softras.pipeline.setup"]]
+
+
+MAX_LINES = 600
+
+
+def long_modules_without_a_reason(sources: dict[str, str]) -> list[str]:
+    """Modules over MAX_LINES lines whose docstring does not say why they are one module."""
+    found = []
+    for name, text in sources.items():
+        lines = text.count("\n")
+        docstring = ast.get_docstring(ast.parse(text)) or ""
+        if lines > MAX_LINES and "Why one module" not in docstring:
+            found.append(f"{name}: {lines} lines")
+    return found
+
+
+def test_long_modules_say_why_they_are_one_module():
+    sources = {name: path.read_text() for name, path in modules().items()}
+    assert long_modules_without_a_reason(sources) == []
+    assert long_modules_without_a_reason({"softras.big": '"""A big module."""\n' + "x = 1\n" * 601}) == \
+        ["softras.big: 602 lines"]

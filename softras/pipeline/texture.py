@@ -45,6 +45,11 @@ lp_bld_sample_aos.c) and checked against it by experiment:
   bilinear and mip blends as ``a + ((w (b - a) + 128) >> 8)`` on bytes (each
   lerp rounded to a byte), the mip weight truncated to ``floor(frac * 256)``;
   mirrored_repeat goes through the float ("SoA") path instead.
+
+Why one module of ~640 lines: a texture lookup is one stage with one chain of
+steps (derivatives, level of detail, levels, addresses, weights, fetch), and each
+step's gl and exact forms sit side by side so their difference is visible; the
+sections below follow the chain.
 """
 
 from __future__ import annotations

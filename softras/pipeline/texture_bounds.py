@@ -118,6 +118,11 @@ Cost: linear filters are evaluated at 3 x 3 points (9 taps) per candidate
 level, typically 1-3 levels; with the 5 derivative candidates a bounds render
 (`softras.renderer.render_scene(texture_bounds=...)`) takes 3-6x a stage
 render of the textured scenes (up to 10x for the 15-level strip).
+
+Why one module of ~670 lines: the bounds are one model (dEQP's lookup verifier)
+whose parts -- derivative candidates, one level's bounds, the whole lookup,
+anisotropy and the bound renders -- use each other's intermediate ranges; split,
+the invariants tying them together would live in no file.
 """
 
 from __future__ import annotations

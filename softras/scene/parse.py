@@ -32,6 +32,11 @@ meaning):
   {"texture": NAME, "scale": S}`` moves the mesh's vertices along their
   normals when the scene is loaded (:mod:`softras.scene.displace`), so
   ``Draw.mesh`` is the displaced mesh for both renderers.
+
+Why one module of ~820 lines: one parsing function per section of the format
+(camera, textures, lights, meshes, materials, nodes), all sharing the same
+validators and the place strings of their errors (docs/scene_format.md lists
+the keys; the records are in `softras.scene.model`).
 """
 
 from __future__ import annotations
@@ -659,6 +664,12 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
         if "mesh" in data:
             mesh = _parse_mesh(data["mesh"], f"{node_place}.mesh", budget)
             material = _parse_material(data.get("material", {}), f"{node_place}.material", textures)
+            if mesh.primitive == "lines":
+                lit = [key for key in ("texture", "normal_map", "bump_map") if getattr(material, key) is not None]
+                lit += [f"{material.shading} shading"] if material.shading != "unlit" else []
+                if lit:
+                    raise SceneError(f"{node_place}.material", f"lines are drawn unlit and untextured, "
+                                                               f"this material has {', '.join(lit)}")
             if material.texture is not None and mesh.uvs is None:
                 raise SceneError(f"{node_place}.mesh", f"material uses texture {material.texture!r} but the mesh has no uvs")
             if material.shading in ("gouraud", "phong") and mesh.normals is None:

@@ -38,6 +38,10 @@ have y up: the same pixel is (x, H - 1 - y) there, with its centre at
 
 The history is a dict of plain Python values (JSON-able); `format_text`
 turns it into the readable report printed by ``softras explain``.
+
+Why one module of ~810 lines: it retraces every stage for one pixel and
+formats each stage's record; one section per stage keeps the history in
+pipeline order and next to the text that prints it.
 """
 
 from __future__ import annotations

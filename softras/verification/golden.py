@@ -40,6 +40,10 @@ differs from the manifest's is refused.
    says so;
 3. softras's rendering (``precision="gl"``) passes :func:`softras.compare`
    against the golden image with the scene's tolerance.
+
+Why one module of ~700 lines: golden images are one workflow (provenance,
+manifest, check, update with its all-or-nothing writes); the sections below
+follow it, and the atomic-update code must sit beside the manifest it protects.
 """
 
 from __future__ import annotations
@@ -69,7 +73,7 @@ __all__ = [
 ]
 
 #: The repository root (a source checkout).
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 #: Where the conformance scenes live.
 SCENES_DIR = REPO / "scenes"
 #: Where their golden images live.

@@ -59,6 +59,11 @@ Exit status of ``softras conformance`` (:func:`exit_status`): 0 when no scene
 fails (or, with a baseline, the results match it), 1 on a failing scene (or
 a new failure or unexpected pass against the baseline), 2 on bad input,
 130 when interrupted.
+
+Why one module of ~1040 lines: the supervisor, the worker loop and the
+protocol between them (messages, deadlines, retries, baselines, resume) are
+one concurrent design whose invariants cross those parts; the report itself
+is written by `softras.verification.report`.
 """
 
 from __future__ import annotations

@@ -68,6 +68,11 @@ or anything in between"), not only one of them; a line's pixel count
 (section 14.5.1 rules 2 and 3) is not checked. A consistent swap of the tie
 rule is conformant, so the spec profile does not fail it; a tie rule that
 leaves gaps or double hits on shared edges is not, and fails.
+
+Why one module of ~720 lines: the two profiles share the verdicts, the
+tolerances and the reasons' wording; the spec profile's bounds and the strict
+profile's judgement are kept together so that a verdict's text is written in
+one place.
 """
 
 from __future__ import annotations
