@@ -1,4 +1,4 @@
-"""docs/architecture.md names real functions: every dotted name in a code span
+"""The docs name real code. docs/architecture.md: every dotted name in a code span
 (``pipeline.setup.setup_triangles``, ``kernels.draw.render_samples``) and every
 private one (``_tile``) resolves to an object of softras or glref, so the walk
 cannot outlive a rename."""
@@ -57,3 +57,15 @@ def test_every_named_function_exists(modules):
 def test_a_renamed_function_is_found(modules):
     text = "`pipeline.setup.setup_triangles`, `kernels.draw._no_such_kernel`, `_no_such_helper`, `floor.png`"
     assert [n for n in names(text) if not resolves(n, modules)] == ["_no_such_helper", "kernels.draw._no_such_kernel"]
+
+
+def test_every_module_path_the_docs_name_exists(modules):
+    """README.md and docs/*.md name modules and functions as ``softras.x.y``;
+    after a move each must still resolve (the docs moved with the code)."""
+    root = DOC.parent.parent
+    missing = []
+    for path in [root / "README.md", *sorted((root / "docs").glob("*.md"))]:
+        for name in sorted(set(re.findall(r"`((?:softras|glref)\.[\w.]*\w)", path.read_text()))):
+            if not resolves(name, modules):
+                missing.append(f"{path.name}: {name}")
+    assert missing == []
