@@ -152,9 +152,13 @@ def _gl_description() -> str | None:
 
 
 def _check_output_file(path: str | os.PathLike) -> Path:
-    """Check that an output PNG can be written, before anything is done."""
+    """Check that an output PNG can be written, before anything is done: its
+    name ends in .png (softras writes PNG only; PNG bytes under another name
+    would mislead) and its folder is writable."""
     from softras.scene.imageio import check_writable
 
+    if Path(path).suffix.lower() != ".png":
+        raise CLIError(f"{path}: softras writes PNG pictures only; name the file .png")
     return check_writable(path)
 
 
@@ -748,6 +752,16 @@ def _device(text: str) -> str:
     return str(value)
 
 
+def _version() -> str:
+    """The installed distribution's version (pyproject.toml's, for a source checkout)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("softras")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``softras`` argument parser.
 
@@ -761,6 +775,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="A reference software rasterizer, cross-checked image by image against OpenGL.",
         epilog="Exit status: 0 success or pass, 1 comparison failed, 2 bad input or environment error.",
     )
+    parser.add_argument("--version", action="version", version=f"softras {_version()}")
     parser.add_argument("--gl-device", type=_device, default=None, metavar="N",
                         help="glref renders on the N-th EGL device (machines with several GPUs); "
                              "Mesa's driver is chosen with GALLIUM_DRIVER (llvmpipe, softpipe, zink)")

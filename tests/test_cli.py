@@ -433,3 +433,18 @@ def test_atomic_write_rejects_bad_images(tmp_path):
         with pytest.raises(ImageError):
             write_png_atomic(tmp_path / "x.png", bad)
     assert not list(tmp_path.iterdir())
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.startswith("softras 0.")
+
+
+@pytest.mark.parametrize("name", ["picture.jpg", "picture.JPEG", "picture", "diff.tiff"])
+def test_an_output_that_is_not_png_is_refused(tmp_path, capsys, name):
+    """PNG bytes under another name would mislead: refused up front, nothing written."""
+    output = tmp_path / name
+    status = main(["render", str(Path(__file__).resolve().parents[1] / "scenes" / "demo.json"), "-o", str(output)])
+    assert status == 2
+    assert capsys.readouterr().err == f"softras: error: {output}: softras writes PNG pictures only; name the file .png\n"
+    assert list(tmp_path.iterdir()) == []
