@@ -480,7 +480,7 @@ def _is_kernel(func: ast.AST) -> bool:
 
 @dataclass
 class Kernel:
-    module: str
+    module: str                   # its file under softras/, without .py: "pipeline/texture"
     qualname: str                 # as numba names it (``outer.<locals>.inner``)
     first: int                    # co_firstlineno: the first decorator's line
     last: int
@@ -488,34 +488,42 @@ class Kernel:
 
     @property
     def cache_base(self) -> str:
-        name = f"{self.module}.{self.qualname}".replace("<", "").replace(">", "")
+        name = f"{Path(self.module).name}.{self.qualname}".replace("<", "").replace(">", "")
         return f"{name}-{self.first}.py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
 
 
 class ModuleInfo:
     """The kernels, top-level statements and softras imports of one module's source."""
 
-    def __init__(self, name: str, text: str):
+    def __init__(self, name: str, text: str, known: set[str]):
         self.name = name
         self.tree = ast.parse(text)
         self.kernels: list[Kernel] = []
         self.functions: list[tuple[int, int]] = []           # every def's line range
         self.imports: dict[str, tuple[str, str | None]] = {}   # local name -> (module, attribute or None)
         self._walk(self.tree.body, "", None)
+        package = name.rsplit("/", 1)[0] if "/" in name else ""
         for node in ast.walk(self.tree):
             if isinstance(node, ast.ImportFrom):
-                base = node.module or ""
-                if node.level == 1 and not base or node.level == 0 and base == "softras":
-                    for a in node.names:
-                        self.imports[a.asname or a.name] = (a.name, None)
-                elif node.level == 1 or base.startswith("softras."):
-                    module = base.split(".")[-1]
-                    for a in node.names:
+                if node.level:                                  # relative to this module's package
+                    parts = package.split("/") if package else []
+                    parts = parts[:len(parts) - node.level + 1]
+                    base = "/".join(parts + ([node.module.replace(".", "/")] if node.module else []))
+                elif (node.module or "").split(".")[0] == "softras":
+                    base = "/".join(node.module.split(".")[1:])
+                else:
+                    continue
+                for a in node.names:
+                    child = f"{base}/{a.name}" if base else a.name
+                    if child in known:                          # from softras.pipeline import texture
+                        self.imports[a.asname or a.name] = (child, None)
+                    else:                                       # from softras.pipeline.texture import wrap
+                        module = base if base in known else f"{base}/__init__" if base else "__init__"
                         self.imports[a.asname or a.name] = (module, a.name)
             elif isinstance(node, ast.Import):
                 for a in node.names:
-                    if a.name.startswith("softras."):
-                        self.imports[a.asname or a.name] = (a.name.split(".")[1], None)
+                    if a.name.startswith("softras.") and a.asname:
+                        self.imports[a.asname] = ("/".join(a.name.split(".")[1:]), None)
 
     def _walk(self, body, prefix: str, kernel: Kernel | None):
         for node in body:
@@ -559,8 +567,10 @@ class KernelGraph:
     """Which kernels of softras a change reaches (see the comment above)."""
 
     def __init__(self, root: Path):
-        self.modules = {p.stem: ModuleInfo(p.stem, p.read_text(encoding="utf-8"))
-                        for p in sorted((root / "softras").glob("*.py"))}
+        paths = sorted((root / "softras").rglob("*.py"))
+        known = {module_key(p, root) for p in paths}
+        self.modules = {module_key(p, root): ModuleInfo(module_key(p, root), p.read_text(encoding="utf-8"), known)
+                        for p in paths}
 
     def _resolve(self, module: str, ref) -> tuple[str, str] | None:
         info = self.modules[module]
@@ -617,6 +627,11 @@ class KernelGraph:
         return [k for info in self.modules.values() for k in info.kernels if (k.module, k.qualname) in reached]
 
 
+def module_key(path: Path, root: Path = REPO) -> str:
+    """A module's key: its path under softras/ without .py ("pipeline/texture")."""
+    return Path(path).relative_to(root / "softras").with_suffix("").as_posix()
+
+
 def reached_kernels(mutation: Mutation, root: Path = REPO) -> list[Kernel]:
     """The kernels (in the repository's source) whose compiled code a mutation changes."""
     graph = KernelGraph(root)
@@ -624,7 +639,7 @@ def reached_kernels(mutation: Mutation, root: Path = REPO) -> list[Kernel]:
     for edit in mutation.edits:
         if not (edit.path.startswith("softras/") and edit.path.endswith(".py")):
             continue
-        module = Path(edit.path).stem
+        module = module_key(root / edit.path, root)
         text = (root / edit.path).read_text(encoding="utf-8")
         at = text.index(edit.old)
         first = text.count("\n", 0, at) + 1
@@ -688,7 +703,8 @@ def prepare_caches(tree: Path, modules: list[str], reached: list[Kernel], mutati
                 f.write(f"# mutate.py: kernels recompiled for the mutation {mutation_name}\n")
         old_stamp = numba_source_stamp(REPO / "softras" / f"{module}.py")
         new_stamp = numba_source_stamp(source)
-        src_cache, dst_cache = REPO / "softras" / "__pycache__", tree / "softras" / "__pycache__"
+        folder = Path(module).parent
+        src_cache, dst_cache = REPO / "softras" / folder / "__pycache__", tree / "softras" / folder / "__pycache__"
         dst_cache.mkdir(exist_ok=True)
         hit = {k.cache_base for k in reached if k.module == module}
         for kernel in graph.modules[module].kernels:
@@ -741,7 +757,8 @@ def sync_tree(repo: Path, dst: Path, own_caches: set[str]) -> None:
         pycache = here.name == "__pycache__"
         (dst / rel).mkdir(parents=True, exist_ok=True)
         for name in files:
-            if pycache and name.endswith(NUMBA_CACHE_SUFFIXES) and name.split(".", 1)[0] in own_caches:
+            if (pycache and name.endswith(NUMBA_CACHE_SUFFIXES) and rel.parts[:1] == ("softras",)
+                    and (Path(*rel.parts[1:-1]) / name.split(".", 1)[0]).as_posix() in own_caches):
                 continue
             src = here / name
             st = src.stat()
@@ -775,7 +792,7 @@ def prepare_copy(mutation: Mutation | None, workdir: Path) -> tuple[Path, dict]:
         sync_tree(REPO, tree, set())
         return tree, {}
     reached = reached_kernels(mutation)
-    modules = {k.module for k in reached} | {Path(e.path).stem for e in mutation.edits
+    modules = {k.module for k in reached} | {module_key(REPO / e.path) for e in mutation.edits
                                              if e.path.startswith("softras/") and e.path.endswith(".py")}
     sync_tree(REPO, tree, modules)
     apply_edits(mutation, tree)
