@@ -249,7 +249,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        E("softras/scene/texels.py",
          "return (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11",
          "return (1 - a) * (1 - b) * t00 + a * (1 - b) * t01 + (1 - a) * b * t10 + a * b * t11"),
-       ("tests/stages/test_texture.py", "tests/test_texture_gl.py")),
+       ("tests/stages/test_bump.py", "tests/stages/test_texture_beyond.py", "tests/test_bump_gl.py")),
     _m("mip_blend_weight_rounded", "texture filter", "stages",
        "the 8.8 mip blend weight rounded instead of truncated (floor(frac * 256))",
        E("softras/pipeline/texture.py", "w8 = np.floor(choice.frac * 256).astype(np.int64)[:, None]",
