@@ -388,7 +388,8 @@ MUTATIONS: tuple[Mutation, ...] = (
        "render_scene sends another tie rule to the fast path (which knows only llvmpipe's)",
        E("softras/renderer.py", 'and texture_bounds is None and tie_rule == "left_bottom"',
          "and texture_bounds is None"),
-       (FAST, "tests/test_texture_bounds.py", "tests/test_verifier.py", "tests/stages/test_setup.py")),
+       (FAST, "tests/test_texture_bounds.py", "tests/test_verifier.py", "tests/stages/test_setup.py",
+        "tests/test_planted_bugs.py")),
 )
 
 
