@@ -517,7 +517,9 @@ def test_a_million_triangle_binary_ply_loads_in_well_under_a_second(tmp_path):
         loaded = softras.load_scene(str(path))
         times.append(time.perf_counter() - start)
     np.testing.assert_array_equal(loaded.draws[0].mesh.indices, triangles)
-    assert statistics.median(times) < 0.5, times
+    # ~0.1 s measured here (numpy.frombuffer, no Python lists); a list-based
+    # reader takes seconds.  The bound leaves room for a busy machine.
+    assert statistics.median(times) < 1.0, times
 
 
 # --------------------------------------------------------------------------- bad files
