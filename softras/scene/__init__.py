@@ -7,6 +7,7 @@
 - `transforms`: GL's matrix helpers (gluPerspective, glFrustum, glOrtho,
   gluLookAt, node transforms);
 - `meshes`: procedural meshes (grid, sphere, fan) and vertex tangents;
+- `meshfiles`: mesh files (PLY, OBJ, NPZ, glTF/GLB) for ``"mesh": {"file": ...}``;
 - `texels`: texture images, procedural textures, premultiplication and
   llvmpipe's mipmap generation;
 - `displace`: displacement mapping, applied to meshes when a scene is loaded;

@@ -23,6 +23,8 @@ meaning):
   ``"opaque_then_sorted"`` (see :func:`ordered_draws`);
 - ``"mesh": {"procedural": "grid" | "sphere" | "fan", ...}`` (see
   :mod:`softras.scene.meshes` and :data:`_PROCEDURAL_MESH_KEYS`);
+- ``"mesh": {"file": PATH}``: a PLY, OBJ, NPZ or glTF/GLB mesh file relative to
+  the scene's folder (see :mod:`softras.scene.meshfiles`);
 - texture ``"procedural": "checker" | "gradient" | "noise" | "bumps"`` with ``"size"`` and
   per-kind parameters instead of ``"image"`` (see :data:`_PROCEDURAL_TEXTURE_KEYS`);
 - material ``"normal_map": NAME`` (tangent-space normal texture) or
@@ -50,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-from softras.scene import displace, meshes, texels
+from softras.scene import displace, meshes, meshfiles, texels
 from softras.scene.model import (BLEND_MODES, CULL_MODES, DEFAULT_TOLERANCE, DEPTH_FUNCTIONS, FORMAT_VERSION, FRAMEBUFFERS,
                                  LIGHT_TYPES, MAG_FILTERS, MAX_NODE_DEPTH, MAX_PIXELS, MAX_SIDE, MAX_TEXELS,
                                  MIN_FILTERS, PRIMITIVES, PROCEDURAL_TEXTURES, PROJECTIONS, RENDER_ORDERS, SHADINGS,
@@ -467,7 +469,7 @@ def _parse_light(value, place: str) -> Light:
     return Light(kind, _readonly(position), _readonly(direction), _readonly(color))
 
 
-_MESH_KEYS = ("primitive", "positions", "indices", "colors", "normals", "uvs", "procedural")
+_MESH_KEYS = ("primitive", "positions", "indices", "colors", "normals", "uvs", "procedural", "file")
 # Parameters of procedural meshes: key -> (kind of value, default or None if required).
 _PROCEDURAL_MESH_KEYS = {
     "grid": {"cols": ("count", None), "rows": ("count", None), "size": ("size2", [1, 1]),
@@ -480,10 +482,13 @@ _PROCEDURAL_MESH_KEYS = {
 _REQUIRED = object()
 
 
-def _parse_mesh(value, place: str, budget: list[int]) -> Mesh:
-    """``budget``: a one-element list, procedural triangles the scene may still make."""
+def _parse_mesh(value, place: str, budget: list[int], base_dir: str) -> Mesh:
+    """``budget``: a one-element list, the procedural and file-mesh triangles
+    the scene may still have; ``base_dir``: the folder mesh files are relative to."""
     if isinstance(value, dict) and "procedural" in value:
         return _parse_procedural_mesh(value, place, budget)
+    if isinstance(value, dict) and "file" in value:
+        return _parse_file_mesh(value, place, budget, base_dir)
     data = _object(value, place, _MESH_KEYS, required=("positions",))
     primitive = _choice(data.get("primitive", "triangles"), f"{place}.primitive", PRIMITIVES)
     width = 3 if primitive == "triangles" else 2
@@ -512,6 +517,22 @@ def _parse_mesh(value, place: str, budget: list[int]) -> Mesh:
     normals = per_vertex("normals", 3)
     uvs = per_vertex("uvs", 2)
     return Mesh(primitive, *(_readonly(a) for a in (positions, indices, colors, normals, uvs)))
+
+
+def _parse_file_mesh(value: dict, place: str, budget: list[int], base_dir: str) -> Mesh:
+    """``{"file": PATH}``: a PLY, OBJ, NPZ or glTF file (softras.scene.meshfiles),
+    nothing else beside it; its triangles count against ``budget``."""
+    data = _object(value, place, _MESH_KEYS)
+    for key in data:
+        if key != "file":
+            raise SceneError(f"{place}.{key}", "not allowed together with file (the file gives the whole mesh)")
+    name = _string(data["file"], f"{place}.file")
+    if not name:
+        raise SceneError(f"{place}.file", "must not be empty")
+    path = os.path.normpath(os.path.join(base_dir, name))
+    mesh = meshfiles.read_mesh_file(path, name, f"{place}.file", budget[0])
+    budget[0] -= len(mesh.indices)
+    return mesh
 
 
 def _parse_procedural_mesh(value, place: str, budget: list[int]) -> Mesh:
@@ -558,7 +579,7 @@ def _parse_procedural_mesh(value, place: str, budget: list[int]) -> Mesh:
     triangles = meshes.triangle_count(kind, **args)
     if triangles > budget[0]:
         raise SceneError(place, f"this {kind} has {triangles} triangles; the scene may have at most "
-                                f"{meshes.MAX_TRIANGLES} procedural triangles in all")
+                                f"{meshes.MAX_TRIANGLES} procedural and file-mesh triangles in all")
     budget[0] -= triangles
     arrays = meshes.PROCEDURAL[kind](**args)
     return Mesh("triangles", *(_readonly(np.ascontiguousarray(a)) if a is not None else None for a in arrays))
@@ -648,7 +669,8 @@ def _depth_test(value, place: str) -> str | None:
     return value
 
 
-def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws: list, budget, depth: int) -> None:
+def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws: list, budget, depth: int,
+                   base_dir: str) -> None:
     """Append a Draw for every node with a mesh: depth-first, parent before its
     children, in list order (GL draw-call order)."""
     if depth > MAX_NODE_DEPTH:
@@ -662,7 +684,7 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
         if not np.isfinite(world).all():
             raise SceneError(node_place, "the world matrix overflows (transform numbers too large)")
         if "mesh" in data:
-            mesh = _parse_mesh(data["mesh"], f"{node_place}.mesh", budget)
+            mesh = _parse_mesh(data["mesh"], f"{node_place}.mesh", budget, base_dir)
             material = _parse_material(data.get("material", {}), f"{node_place}.material", textures)
             if mesh.primitive == "lines":
                 lit = [key for key in ("texture", "normal_map", "bump_map") if getattr(material, key) is not None]
@@ -690,7 +712,8 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
                 if key in data:
                     raise SceneError(f"{node_place}.{key}", "a node without a mesh draws nothing (give it to the node with the mesh)")
         if "children" in data:
-            _flatten_nodes(data["children"], f"{node_place}.children", world, textures, draws, budget, depth + 1)
+            _flatten_nodes(data["children"], f"{node_place}.children", world, textures, draws, budget, depth + 1,
+                           base_dir)
 
 
 def _displaced_mesh(mesh: Mesh, displacement: Displacement, textures: dict[str, Texture], place: str) -> Mesh:
@@ -747,7 +770,8 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = No
     textures = _parse_textures(data.get("textures", {}), base_dir)
     lights = tuple(_parse_light(light, f"lights[{i}]") for i, light in enumerate(_list(data.get("lights", []), "lights")))
     draws: list[Draw] = []
-    _flatten_nodes(data.get("nodes", []), "nodes", np.identity(4), textures, draws, [meshes.MAX_TRIANGLES], 0)
+    _flatten_nodes(data.get("nodes", []), "nodes", np.identity(4), textures, draws, [meshes.MAX_TRIANGLES], 0,
+                   base_dir)
     tolerance = _parse_tolerance(data.get("tolerance", {}))
     framebuffer = _choice(data.get("framebuffer", "rgba8"), "framebuffer", FRAMEBUFFERS)
     render_order = _choice(data.get("render_order", "scene"), "render_order", RENDER_ORDERS)
