@@ -109,7 +109,7 @@ class Mutation:
 
     name : identifier (``--only``); stage : the pipeline stage or component;
     where : which code it lives in -- "stages" (the readable pipeline only),
-    "fast path" (softras.kernels.draw only), "shared" (code both of softras's
+    "fast path" (softras.kernels only), "shared" (code both of softras's
     renderers, or softras and glref, run: no equality test between them can
     see it, a test must ask GL or a hand-computed value), "glref" (the GL
     side); what : one line, what the bug does; edits : the source edits;
@@ -168,7 +168,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        (FAST, "tests/stages/test_setup.py", "tests/stages/test_rasterize.py")),
     _m("fast_fill_rule_top_edges", "setup", "fast path",
        "the fast path's fill rule: horizontal top edges inclusive instead of bottom edges",
-       E("softras/kernels/draw.py", "tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0",
+       E("softras/kernels/setup.py", "tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0",
          "tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b < 0)) else 0"),
        (FAST, "tests/test_random_triangles.py")),
     _m("raster_all_edges_inclusive", "rasterize", "stages",
@@ -182,7 +182,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        (FAST, "tests/stages/test_setup.py", "tests/test_mutations_caught.py")),
     _m("fast_snap_truncate", "setup", "fast path",
        "the fast path truncates x to 1/256 pixel instead of rounding",
-       E("softras/kernels/draw.py",
+       E("softras/kernels/setup.py",
          "rx = np.int64(np.rint((np.float32(wx) - np.float32(0.5)) * np.float32(SUBPIXEL_ONE)))",
          "rx = np.int64(np.floor((np.float32(wx) - np.float32(0.5)) * np.float32(SUBPIXEL_ONE)))"),
        (FAST, "tests/test_random_triangles.py")),
@@ -193,7 +193,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        (FAST, "tests/stages/test_setup.py", "tests/test_mutations_caught.py")),
     _m("fast_viewport_unfused", "setup", "fast path",
        "the fast path's viewport transform unfused for the shader's vertices too",
-       E("softras/kernels/draw.py", "    if fused:\n        wx = np.float64(np.float32(px * hx + hx))",
+       E("softras/kernels/setup.py", "    if fused:\n        wx = np.float64(np.float32(px * hx + hx))",
          "    if False:\n        wx = np.float64(np.float32(px * hx + hx))"),
        (FAST, "tests/test_random_triangles.py", "tests/test_mutations_caught.py")),
     # ------------------------------------------------------------ interpolate
@@ -204,7 +204,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        ("tests/stages/test_interpolate.py", FAST)),
     _m("fast_perspective_off", "interpolate", "fast path",
        "the fast path's weights without 1/w (affine colours and uvs)",
-       E("softras/kernels/draw.py",
+       E("softras/kernels/interpolate.py",
          "    q0 = e0 / total * iw0\n    q1 = e1 / total * iw1\n    q2 = e2 / total * iw2\n",
          "    q0 = e0 / total\n    q1 = e1 / total\n    q2 = e2 / total\n"),
        (FAST,)),
@@ -221,7 +221,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        ("tests/stages/test_texture.py", "tests/test_texture_gl.py", FAST)),
     _m("fast_lod_magnify_threshold", "texture LOD", "fast path",
        "the fast path magnifies up to rho^2 = 2 (lambda 0.5) instead of rho^2 = 1",
-       E("softras/kernels/draw.py", "magnified = not (rho2 > 1)", "magnified = not (rho2 > 2)"),
+       E("softras/kernels/texture.py", "magnified = not (rho2 > 1)", "magnified = not (rho2 > 2)"),
        (FAST, "tests/test_texture_gl.py")),
     _m("wrap_repeat_as_clamp", "texture wrap", "stages",
        "repeat wraps like clamp_to_edge",
@@ -230,7 +230,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        ("tests/stages/test_texture.py", "tests/test_texture_gl.py")),
     _m("fast_wrap_select_swap", "texture wrap", "fast path",
        "the fast path's branch-free wrap swaps repeat and mirrored_repeat",
-       E("softras/kernels/draw.py", "return clamped if mode == 1 else (repeat if mode == 0 else mirrored)",
+       E("softras/kernels/texture.py", "return clamped if mode == 1 else (repeat if mode == 0 else mirrored)",
          "return clamped if mode == 1 else (mirrored if mode == 0 else repeat)"),
        (FAST,)),
     _m("filter_lerp_truncates", "texture filter", "stages",
@@ -240,7 +240,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        ("tests/stages/test_texture.py", "tests/test_texture_gl.py", FAST)),
     _m("fast_filter_weight_offset", "texture filter", "fast path",
        "the fast path's 8.8 s coordinate is off by 1/256 texel (- 127 instead of - 128)",
-       E("softras/kernels/draw.py",
+       E("softras/kernels/texture.py",
          "fs = np.int64(np.rint(np.float32(np.float32(lf[_LF_S, l]) * scale_s))) - 128",
          "fs = np.int64(np.rint(np.float32(np.float32(lf[_LF_S, l]) * scale_s))) - 127"),
        (FAST,)),
@@ -289,7 +289,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        (FAST, "tests/test_mutations_caught.py")),
     _m("fast_depth_round_floor", "depth", "fast path",
        "the fast path rounds depth down to 24 bits",
-       E("softras/kernels/draw.py", "k = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE)",
+       E("softras/kernels/interpolate.py", "k = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE)",
          "k = np.floor(min(max(z, 0.0), 1.0) * DEPTH_SCALE)"),
        (FAST, "tests/test_mutations_caught.py")),
     _m("depth_lequal_as_less", "depth", "stages",
@@ -298,7 +298,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        ("tests/stages/test_ops.py", FAST)),
     _m("fast_depth_greater_as_gequal", "depth", "fast path",
        "the fast path's integer depth function greater passes equal depths",
-       E("softras/kernels/draw.py", "return ordered & (k > stored)", "return ordered & (k >= stored)"),
+       E("softras/kernels/ops.py", "return ordered & (k > stored)", "return ordered & (k >= stored)"),
        (FAST,)),
     _m("glref_depth_lequal_as_less", "depth", "glref",
        "glref maps depth_test lequal to GL_LESS",
@@ -312,7 +312,7 @@ MUTATIONS: tuple[Mutation, ...] = (
        ("tests/stages/test_ops.py", "tests/test_blend_gl.py")),
     _m("fast_blend_over_factor", "blend", "fast path",
        "the fast path's 'over' multiplies dst by 256 - alpha instead of 255 - alpha",
-       E("softras/kernels/draw.py", "total = src + _mul_lanes(dst, 255 - alpha)",
+       E("softras/kernels/ops.py", "total = src + _mul_lanes(dst, 255 - alpha)",
          "total = src + _mul_lanes(dst, 256 - alpha)"),
        (FAST, "tests/test_blend_gl.py")),
     _m("blend_mul_exact_rounding", "blend", "stages",
@@ -356,16 +356,16 @@ MUTATIONS: tuple[Mutation, ...] = (
     # -------------------------------------------------- fast path machinery
     _m("fast_parallel_setup_drops_a_chunk", "fast path set-up", "fast path",
        "the parallel set-up (>= PARALLEL_SETUP triangles) skips its last chunk",
-       E("softras/kernels/draw.py", "for chunk in numba.prange(n_chunks):", "for chunk in numba.prange(n_chunks - 1):"),
+       E("softras/kernels/setup.py", "for chunk in numba.prange(n_chunks):", "for chunk in numba.prange(n_chunks - 1):"),
        (FAST, "tests/test_mutations_caught.py")),
     _m("fast_bin_last_tile_column", "fast path binning", "fast path",
        "binning leaves out the last 64-pixel tile column of a triangle's box",
-       E("softras/kernels/draw.py", "for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE + 1):",
+       E("softras/kernels/rasterize.py", "for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE + 1):",
          "for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE):", count=2),
        (FAST,)),
     _m("fast_stale_visible_flag", "buffer reuse", "fast path",
        "the reused set-up table keeps a culled triangle's visible flag from the previous render",
-       E("softras/kernels/draw.py", "        tri_i[t, _I_VIS] = 0\n        tri_i[t, _I_SWAP] = 0\n",
+       E("softras/kernels/setup.py", "        tri_i[t, _I_VIS] = 0\n        tri_i[t, _I_SWAP] = 0\n",
          "        tri_i[t, _I_SWAP] = 0\n        tri_i[t, _I_SWAP] = 0\n"),
        (FAST, "tests/test_mutations_caught.py")),
     _m("resolve_aliases_scratch", "buffer reuse", "fast path",
@@ -447,7 +447,7 @@ def check_mutations(mutations=MUTATIONS) -> None:
 # index ``<module>.<qualname>-<first line>.pyXY.nbi`` (the source's stamp --
 # in numba 0.68 a SHA-256 of the file -- and the compiled signatures) and data
 # files ``....N.nbc``. It does not know which other kernels a kernel inlined or
-# which global values it froze: a kernel of fastpath.py that inlines
+# which global values it froze: a kernel of softras/kernels/ that inlines
 # ops.blend_byte would load its unmutated blend from the cache when only ops.py
 # changes. So the harness works out, from the source (`KernelGraph`), which
 # kernels a mutation reaches -- the kernel it edits, or the kernels that read

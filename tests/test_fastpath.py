@@ -18,6 +18,13 @@ import pytest
 
 import softras
 from softras.kernels import draw as fastpath
+from softras.kernels import interpolate as k_interpolate
+from softras.kernels import lanes as k_lanes
+from softras.kernels import ops as k_ops
+from softras.kernels import rasterize as k_rasterize
+from softras.kernels import rgba8 as k_rgba8
+from softras.kernels import setup as k_setup
+from softras.kernels import texture as k_texture
 from softras.renderer import render_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
@@ -136,12 +143,12 @@ def test_random_textured_scenes_are_bit_identical(seed, fixed_point):
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("samples", [1, 4])
 def test_random_lane_filtered_scenes_are_bit_identical(seed, samples):
-    """The vectorised filter path (`fastpath._lanes_bilinear_fixed`) with both of
+    """The vectorised filter path (`k_texture._lanes_bilinear_fixed`) with both of
     llvmpipe's fixed-point wraps (mirrored_repeat filters in float: the scalar path)."""
     scene = softras.load_scene(random_scene(200 + seed, vectorised=True))
     for name, tex in scene.textures.items():
-        params = fastpath.texture_tables(softras.pipeline.texture.prepare(tex), True)[0]
-        assert params[fastpath._T_VEC] == 1, name
+        params = k_texture.texture_tables(softras.pipeline.texture.prepare(tex), True)[0]
+        assert params[k_texture._T_VEC] == 1, name
     assert_same(*both_paths(scene, samples=samples), f"random lane-filtered scene seed {200 + seed}")
 
 
@@ -181,7 +188,7 @@ def test_branch_free_wrap_equals_wrap_index():
     for mode in WRAP_CODES.values():
         for size in (1, 2, 4, 8, 64, 4096) + ((3, 7, 13, 100) if mode == WRAP_CODES["clamp_to_edge"] else ()):
             for i in indices:
-                assert fastpath._wrap_select(i, size, mode) == wrap_index(i, size, mode), (i, size, mode)
+                assert k_texture._wrap_select(i, size, mode) == wrap_index(i, size, mode), (i, size, mode)
 
 
 def test_plain_colors_give_the_texel_bytes():
@@ -204,10 +211,10 @@ def test_frexp32_equals_math_frexp():
     values = np.concatenate([np.float32([1.1754944e-38, 3.4028235e38, 1, 0.5, 0.75, 2, 1e-30]),
                              (10.0 ** rng.uniform(-37, 38, 2000)).astype(np.float32)])
     for x in values:
-        m, e = fastpath._frexp32(x)
+        m, e = k_texture._frexp32(x)
         assert (float(m), e) == math.frexp(float(x)), x
     for x in np.float32([np.inf, np.nan]):
-        m, e = fastpath._frexp32(x)
+        m, e = k_texture._frexp32(x)
         assert e == 0 and (m == x or (m != m and x != x))
 
 
@@ -226,7 +233,7 @@ def test_quad_lod_equals_choose_levels():
             dv = d[:, 2:] * np.float32([width, height])
             choice = texture.choose_levels(texture.rho_squared(du, dv), min_filter, n_levels, gl=True)
         for i in range(len(d)):
-            level0, level1, frac, image_filter, two = fastpath._quad_lod(width, height, mip, n_levels - 1, 0, 1,
+            level0, level1, frac, image_filter, two = k_texture._quad_lod(width, height, mip, n_levels - 1, 0, 1,
                                                                          *d[i])
             magnified = bool(choice.magnified[i])
             assert image_filter == (0 if magnified else 1), d[i]
@@ -251,7 +258,7 @@ def test_word_blend_equals_the_per_channel_blend():
             alpha = (word >> 24) & 255
             expected = sum(blend_byte(mode, (word >> (8 * c)) & 255, (dst >> (8 * c)) & 255, alpha) << (8 * c)
                            for c in range(4))
-            assert fastpath._blend_word(mode, word, dst, alpha) == expected, (mode, hex(word), hex(dst))
+            assert k_ops._blend_word(mode, word, dst, alpha) == expected, (mode, hex(word), hex(dst))
 
 
 def test_integer_depth_test_equals_the_float_depth_test():
@@ -259,14 +266,14 @@ def test_integer_depth_test_equals_the_float_depth_test():
     on the pipeline's depths k / (2^24 - 1), for every function, at the ends,
     neighbouring values and NaN on either side."""
     from softras.pipeline.ops import DEPTH_FUNCS, _depth_pass
-    scale = fastpath.DEPTH_SCALE
+    scale = k_ops.DEPTH_SCALE
     ks = [-1, 0, 1, 2, 8388607, 8388608, int(scale) - 1, int(scale)]
     for func in DEPTH_FUNCS.values():
         for k in ks:
             for stored in ks:
                 z = np.nan if k < 0 else k / scale
                 z_stored = np.nan if stored < 0 else stored / scale
-                assert fastpath._depth_pass_k(func, k, stored) == _depth_pass(func, z, z_stored), (func, k, stored)
+                assert k_ops._depth_pass_k(func, k, stored) == _depth_pass(func, z, z_stored), (func, k, stored)
 
 
 def test_lane_depths_round_like_the_float_depth():
@@ -274,17 +281,17 @@ def test_lane_depths_round_like_the_float_depth():
     rint(clamp(z) * (2^24 - 1)) / (2^24 - 1) for in-range, clamped and NaN
     plane values (NaN -> -1)."""
     n = 6
-    tri_f = np.zeros((1, fastpath._NF))
-    li = np.zeros((fastpath._LI_Z + 1, 8), np.int64)
-    li[fastpath._LI_PX, :n] = [0, 1, 2, 3, 4, 5]
+    tri_f = np.zeros((1, k_setup._NF))
+    li = np.zeros((k_lanes._LI_Z + 1, 8), np.int64)
+    li[k_lanes._LI_PX, :n] = [0, 1, 2, 3, 4, 5]
     positions = np.array([[0.5, 0.5]])
     for z0, dzdx in ((0.25, 0.1), (0.999, 0.001), (-0.3, 0.2), (np.nan, 0.0), (0.5, 1e-9)):
-        tri_f[0, fastpath._F_X], tri_f[0, fastpath._F_Z], tri_f[0, fastpath._F_DZDX] = 0.0, z0, dzdx
-        fastpath._lane_depths(n, 0, tri_f, positions, li, 1)
+        tri_f[0, k_setup._F_X], tri_f[0, k_setup._F_Z], tri_f[0, k_setup._F_DZDX] = 0.0, z0, dzdx
+        k_interpolate._lane_depths(n, 0, tri_f, positions, li, 1)
         for l in range(n):
             z = z0 + dzdx * (l + 0.5)
-            z = np.rint(min(max(z, 0.0), 1.0) * fastpath.DEPTH_SCALE) if z == z else np.nan
-            assert li[fastpath._LI_Z, l] == (-1 if np.isnan(z) else int(z)), (z0, dzdx, l)
+            z = np.rint(min(max(z, 0.0), 1.0) * k_ops.DEPTH_SCALE) if z == z else np.nan
+            assert li[k_lanes._LI_Z, l] == (-1 if np.isnan(z) else int(z)), (z0, dzdx, l)
 
 
 def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
@@ -293,14 +300,14 @@ def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
     words = rng.integers(0, 2**32, size=(200, 2), dtype=np.uint64)
     words[:4] = [[0, 0xFFFFFFFF], [0xFFFFFFFF, 0], [0xFFFFFFFF, 0xFFFFFFFF], [0x00FF00FF, 0xFF00FF00]]
     for a_word, b_word in words:
-        a, b = fastpath._spread(a_word), fastpath._spread(b_word)
+        a, b = k_rgba8._spread(a_word), k_rgba8._spread(b_word)
         for c in range(4):
-            assert fastpath._lane(a, c) == (int(a_word) >> (8 * c)) & 255
+            assert k_rgba8._lane(a, c) == (int(a_word) >> (8 * c)) & 255
         for w in list(range(0, 257, 17)) + [255, 256]:
-            mixed = fastpath._lerp_lanes(w, a, b)
+            mixed = k_texture._lerp_lanes(w, a, b)
             for c in range(4):
-                expect = fastpath._lerp8(w, (int(a_word) >> (8 * c)) & 255, (int(b_word) >> (8 * c)) & 255)
-                assert fastpath._lane(mixed, c) == expect, (hex(a_word), hex(b_word), w, c)
+                expect = k_texture._lerp8(w, (int(a_word) >> (8 * c)) & 255, (int(b_word) >> (8 * c)) & 255)
+                assert k_rgba8._lane(mixed, c) == expect, (hex(a_word), hex(b_word), w, c)
 
 
 def test_reused_scratch_buffers_do_not_leak_between_renders():
@@ -332,9 +339,9 @@ def test_texture_tables_are_cached_per_prepared_texture():
     from softras.pipeline import texture
     scene = softras.load_scene(bench.floor_scene(32))
     tex = texture.prepare(scene.textures["checker"])
-    assert fastpath.texture_tables(tex, True) is fastpath.texture_tables(tex, True)
-    params_float = fastpath.texture_tables(tex, False)[0]
-    assert params_float[fastpath._T_FIXED] == 0 and fastpath.texture_tables(tex, True)[0][fastpath._T_FIXED] == 1
+    assert k_texture.texture_tables(tex, True) is k_texture.texture_tables(tex, True)
+    params_float = k_texture.texture_tables(tex, False)[0]
+    assert params_float[k_texture._T_FIXED] == 0 and k_texture.texture_tables(tex, True)[0][k_texture._T_FIXED] == 1
 
 
 def test_scratch_nbytes_counts_the_reused_buffers():
@@ -344,7 +351,7 @@ def test_scratch_nbytes_counts_the_reused_buffers():
     render_scene(scene, precision="gl")
     held = fastpath.scratch_nbytes()
     assert held >= 96 * 96 * (8 + 4)                       # depth (float64) and colour (RGBA8) at least
-    assert held >= 2 * 8 * 8 * (fastpath._NF + fastpath._NI) * 8   # the set-up tables of 128 triangles
+    assert held >= 2 * 8 * 8 * (k_setup._NF + k_setup._NI) * 8   # the set-up tables of 128 triangles
 
 
 # ----------------------------------------------------------------------------- size thresholds
@@ -358,7 +365,7 @@ def test_scratch_nbytes_counts_the_reused_buffers():
 
 def counted_scene(target: int, *, seed: int, textured: bool = False, cull: str = "none",
                   width: int = 97, height: int = 75) -> dict:
-    """One draw whose clipped triangle list (what `fastpath._setup` sets up) has
+    """One draw whose clipped triangle list (what `softras.kernels.setup._setup` sets up) has
     exactly ``target`` triangles: small random triangles of both windings, a
     fifth of them through the near plane or the sides of the frustum (fanned
     into several), then triangles inside the view to make up the count."""
@@ -409,8 +416,8 @@ def test_parallel_setup_threshold_is_bit_identical(offset, textured):
     parallel `_setup`), fans from the clipper among them, colours and uvs at the
     corners, with 1 and 2 threads (4 chunks per thread)."""
     import numba
-    assert fastpath.PARALLEL_SETUP == 4096
-    target = fastpath.PARALLEL_SETUP + offset
+    assert k_setup.PARALLEL_SETUP == 4096
+    target = k_setup.PARALLEL_SETUP + offset
     scene = softras.load_scene(counted_scene(target, seed=300 + offset, textured=textured,
                                              cull="back" if offset else "none"))
     general = render_scene(scene, precision="gl", fast_path=False)
@@ -459,7 +466,7 @@ SIZES = [(9, 7), (8, 8), (13, 5), (127, 1), (16, 8), (129, 1), (7, 9), (17, 15),
 @pytest.mark.parametrize("textured", [False, True])
 def test_block_lane_and_tile_sizes_are_bit_identical(textured, samples):
     """Full-screen draws on viewports around BLOCK, LANES and TILE."""
-    assert (fastpath.BLOCK, fastpath.LANES, fastpath.TILE) == (8, 64, 64)
+    assert (k_rasterize.BLOCK, k_lanes.LANES, k_rasterize.TILE) == (8, 64, 64)
     for width, height in SIZES:
         scene = softras.load_scene(full_screen(width, height, textured, samples))
         assert_same(*both_paths(scene), f"{width}x{height}, textured {textured}, {samples} samples")

@@ -1,0 +1,37 @@
+"""The lane rows: where the tile kernel keeps the pixels it shades together.
+
+No readable counterpart: `softras.pipeline.render` materialises a fragment
+list (`softras.pipeline.rasterize.Fragments`) and per-fragment arrays; the
+compiled path keeps at most one block's worth of them, per thread, in two
+small arrays, float64 ``lf`` (_NLF, 2 * LANES) and int64 ``li``
+(_LI_Z + samples, 2 * LANES), one column per lane.
+
+Pixels are shaded in "lanes": `softras.kernels.draw._tile` lists an
+untextured triangle's covered pixels (shaded from LANES of them on,
+`_flat_block`) or a textured triangle's covered 2x2 quads of one 8x8 block (4
+lanes per quad, up to 64, `_textured_block`); then each step runs as one loop
+over the lanes.  The steps without branches or table look-ups (the
+perspective weights with their six divisions, depth, texel addresses, the
+8.8 filter, the colour bytes) are loops that LLVM compiles to AVX2 (4 or 8
+lanes per instruction); the depth test, the quad's level of detail, the
+texel fetches and the framebuffer writes stay scalar.  Same operations in
+the same order per lane, so the bits are those of the per-pixel code.
+
+The row numbers are module-level constants: numba freezes them into every
+kernel that reads them when it compiles.
+"""
+
+LANES = 64                                   # 16 quads of an 8x8 block
+
+# float64 lane rows: pixel centre, perspective weights, (s, t), per level the
+# float32 scales size * 256 of s and t, the mip blend fraction, the filtered
+# texel (r, g, b, a in [0, 1]).
+_LF_CX, _LF_CY, _LF_W, _LF_S, _LF_T, _LF_SCALE, _LF_FRAC, _LF_TEX, _NLF = 0, 1, 2, 5, 6, 7, 11, 12, 16
+
+# int64 lane rows: pixel, coverage mask, depth-passed mask, per level the
+# texel word offset / width / height, mip weight (0..256), levels, image
+# filter, two levels or one, the 8 texel addresses, the 4 filter weights,
+# the fragment's RGBA8 word, then the depth at each sample as its 24-bit
+# integer (`softras.kernels.interpolate._lane_depths`).
+(_LI_PX, _LI_PY, _LI_COV, _LI_PASS, _LI_BASE, _LI_LW, _LI_LH, _LI_W8, _LI_LEVEL, _LI_IMGF, _LI_TWO,
+ _LI_ADDR, _LI_FRAC8, _LI_WORD, _LI_Z) = 0, 1, 2, 3, 4, 6, 8, 10, 11, 13, 14, 15, 23, 27, 28

@@ -1,0 +1,135 @@
+"""Per-sample operations for the compiled path: the depth test, blending and
+the framebuffer writes.
+
+Mirrors `softras.pipeline.ops.apply_fragments` for an RGBA8 colour buffer in
+gl precision, on the storage gl precision implies anyway: colour as RGBA8
+bytes (``(H, W, S, 4) uint8``, written as (H, W, S) RGBA8 words, R in the
+low byte; byte k stands for the pipeline's float k/255) and depth as the
+integer k of the pipeline's depth k / (2^24 - 1)
+(`softras.pipeline.ops.quantize_depth`; ``(H, W, S) int32``, -1 for NaN): the
+depth test compares integers, and no division turns k back into a float
+(`_depth_pass_k`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from softras.kernels.lanes import _LI_PASS, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
+from softras.kernels.rgba8 import _HALF_LANES, _LANES, _ONE_LANES, _spread, _unspread
+from softras.pipeline import ops as ops_stage
+from softras.pipeline.ops import blend_byte
+
+DEPTH_SCALE = float((1 << ops_stage.DEPTH_BITS) - 1)
+
+
+
+def clear(color, depth, clear_bytes):
+    """`softras.pipeline.ops.new_framebuffer` in the compiled path's storage: fill
+    the byte colour buffer (H, W, S, 4) with clear_bytes (4,) uint8 and depth
+    (H, W, S) int32 with 1 (DEPTH_SCALE, see the module docstring).
+
+    numpy's fill of the buffer seen as RGBA8 words: a third of the time of a
+    parallel numba loop, which also pays the wake-up of its threads."""
+    color.view(np.uint32).fill(np.ascontiguousarray(clear_bytes, np.uint8).view(np.uint32)[0])
+    depth.fill(int(DEPTH_SCALE))
+
+
+@numba.njit(cache=True, inline="always")
+def _depth_test_lane(mask, li, l, depth, py, px, depth_func, write_z, n_samples):
+    """`softras.pipeline.ops.apply_fragments`'s depth test (and depth write) of
+    lane l's samples in ``mask`` against the integer depth buffer, writing the passed depths when write_z; returns the mask of
+    passed samples.  No branches on the outcome."""
+    p = 0
+    for s in range(n_samples):
+        k = li[_LI_Z + s, l]
+        stored = depth[py, px, s]
+        passed = ((mask >> s) & 1 != 0) & _depth_pass_k(depth_func, k, stored)
+        depth[py, px, s] = k if passed & write_z else stored
+        p |= np.int64(passed) << s
+    return p
+
+
+@numba.njit(cache=True, inline="always")
+def _depth_pass_k(func, k, stored):
+    """`softras.pipeline.ops._depth_pass` on depths held as their 24-bit integers k (the
+    depth is k / DEPTH_SCALE, a strictly increasing map, so every comparison
+    agrees) and -1 for NaN, which compares as NaN does: unequal to all,
+    neither less nor greater."""
+    ordered = (k >= 0) & (stored >= 0)
+    if func == 0 or func == 8:
+        return True
+    if func == 1:
+        return False
+    if func == 2:
+        return ordered & (k < stored)
+    if func == 3:
+        return ordered & (k == stored)
+    if func == 4:
+        return ordered & (k <= stored)
+    if func == 5:
+        return ordered & (k > stored)
+    if func == 6:
+        return (not ordered) | (k != stored)
+    return ordered & (k >= stored)
+
+
+@numba.njit(cache=True, inline="always")
+def _write_lanes(n, li, color32, blend, n_samples):
+    """The writes of `softras.pipeline.ops.apply_fragments`: store or blend the
+    n lanes' RGBA8 words into their passed samples (`_write_word` per lane,
+    scalar)."""
+    for l in range(n):
+        p = li[_LI_PASS, l]
+        if p:
+            _write_word(color32, li[_LI_PY, l], li[_LI_PX, l], p, n_samples, blend, li[_LI_WORD, l])
+
+
+@numba.njit(cache=True, inline="always")
+def _write_word(color32, py, px, p, n_samples, blend, word):
+    """`softras.pipeline.ops.apply_fragments`'s colour write: store (blend == 0:
+    one 32-bit store per sample) or blend (`softras.pipeline.ops.blend_byte` per
+    channel, as `softras.pipeline.ops.blend_unorm8`) the fragment's RGBA8 word (R in the
+    low byte) into the samples of pixel (px, py) set in mask p."""
+    alpha = (word >> 24) & 255
+    for s in range(n_samples):
+        if not (p >> s) & 1:
+            continue
+        if blend == 0:
+            color32[py, px, s] = np.uint32(word)
+        else:
+            color32[py, px, s] = np.uint32(_blend_word(blend, word, np.int64(color32[py, px, s]), alpha))
+
+
+@numba.njit(cache=True, inline="always")
+def _blend_word(blend, word, stored, alpha):
+    """`softras.pipeline.ops.blend_byte` on each channel of the RGBA8 words (fragment ``word``
+    with alpha byte ``alpha`` over ``stored``).  "over", "over_straight" and
+    "add" run on the four spread lanes at once (`_mul_lanes`, then a
+    saturating add: every lane sum stays below 2^9); the other equations
+    per channel."""
+    if blend == 1 or blend == 2 or blend == 3:
+        src, dst = _spread(word), _spread(stored)
+        if blend == 1:
+            total = src + _mul_lanes(dst, 255 - alpha)
+        elif blend == 2:
+            total = _mul_lanes(src, alpha) + _mul_lanes(dst, 255 - alpha)
+        else:
+            total = src + dst
+        carry = (total >> np.uint64(8)) & _ONE_LANES          # lanes over 255
+        total = (total | (carry * np.uint64(255))) & _LANES
+        return _unspread(total)
+    blended = 0
+    for c in range(4):
+        blended |= blend_byte(blend, (word >> (8 * c)) & 255, (stored >> (8 * c)) & 255, alpha) << (8 * c)
+    return blended
+
+
+@numba.njit(cache=True, inline="always")
+def _mul_lanes(x, factor):
+    """`softras.pipeline.ops.mul_unorm8` of each spread lane of x by one factor byte:
+    t = x f, (t + (t >> 8) + 0x80) >> 8 per lane (t < 2^16 per lane, and
+    so is the sum: no carry between lanes)."""
+    t = x * np.uint64(factor)
+    return ((t + ((t >> np.uint64(8)) & _LANES) + _HALF_LANES) >> np.uint64(8)) & _LANES

@@ -1,0 +1,220 @@
+"""Set-up of the clipped triangles for the compiled path.
+
+Mirrors `softras.pipeline.setup.setup_triangles` in gl precision (viewport
+transform with llvmpipe's fused multiply-add, 1/256 snapping, area and
+culling, counter-clockwise corner order, integer edge functions, fill rule,
+pixel bounding box), the depth plane of
+`softras.pipeline.interpolate.depth_at_samples`, and the attributes at the
+corners of `softras.pipeline.render.corner_values` (clip weights x source
+vertex values, in the pipeline's order), in one compiled pass over the
+triangles that `softras.pipeline.clip.triangle_list_gl` lists.
+
+The set-up triangles are two tables, one row per clipped triangle (layouts
+below), read by the later kernels (`softras.kernels.rasterize`,
+`softras.kernels.interpolate`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from softras.pipeline import setup as setup_stage
+
+# Per set-up triangle, float64 row of `tri_f`: window x (3), y (3), z (3),
+# 1/w (3), dz/dx, dz/dy.  int64 row of `tri_i`: edge A (3), B (3), X0 (3),
+# Y0 (3), inclusive (3), corners swapped (1), visible (1).
+_F_X, _F_Y, _F_Z, _F_W, _F_DZDX, _F_DZDY, _NF = 0, 3, 6, 9, 12, 13, 14
+_I_A, _I_B, _I_X0, _I_Y0, _I_INC, _I_SWAP, _I_VIS, _NI = 0, 3, 6, 9, 12, 15, 16, 17
+
+CULL_CODES = {"none": 0, "back": 1, "front": 2}
+SUBPIXEL_BITS = setup_stage.SUBPIXEL_BITS      # gl precision snaps to 1/256 pixel
+SUBPIXEL_ONE = setup_stage.SUBPIXEL_ONE
+PARALLEL_SETUP = 4096      # triangles from which `_setup` runs in parallel chunks
+
+
+def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets,
+           tri_f, tri_i, bbox, attributes, n_threads, scratch):
+    """`softras.pipeline.setup.setup_triangles` (gl precision) of the clipped
+    triangles (`_setup_range`): in one call, or in parallel chunks from
+    PARALLEL_SETUP triangles (read at call time).  scratch : the caller's
+    reused buffers (`softras.kernels.draw._Scratch`), for the per-vertex
+    tables."""
+    # The window corners of the input vertices, once per vertex (a vertex is
+    # shared by ~6 triangles).
+    vertex_f = scratch.take("vertex_f", (len(clip_pos), 4), np.float64)
+    vertex_i = scratch.take("vertex_i", (len(clip_pos), 2), np.int64)
+    _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
+    args = (vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets,
+            tri_f, tri_i, bbox, attributes)
+    if len(source) < PARALLEL_SETUP:
+        _setup_range(0, len(source), *args)
+    else:
+        _setup_chunks(*args, 4 * n_threads)
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _setup_chunks(vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height, cull,
+                  offsets, tri_f, tri_i, bbox, attributes, n_chunks):
+    """`softras.pipeline.setup.setup_triangles` (gl precision) as
+    `_setup_range` over n_chunks parallel chunks of the triangles (one
+    compiled loop body serves the serial and the parallel set-up)."""
+    n = source.shape[0]
+    for chunk in numba.prange(n_chunks):
+        _setup_range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks, vertex_f, vertex_i, indices, source,
+                     slot, fan_clip, fan_weights, width, height, cull, offsets, tri_f, tri_i, bbox, attributes)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _window_vertices(clip_pos, width, height, vertex_f, vertex_i):
+    """`softras.pipeline.setup.viewport_transform` (gl, fused) and
+    `softras.pipeline.setup.snap` of every input vertex (`_window_corner`,
+    clip_pos (V, 4)): fills
+    vertex_f (V, 4) float64 with window x, y, z and 1/w and vertex_i (V, 2)
+    int64 with the snapped x, y."""
+    for v in range(clip_pos.shape[0]):
+        (vertex_f[v, 0], vertex_f[v, 1], vertex_f[v, 2], vertex_f[v, 3], vertex_i[v, 0],
+         vertex_i[v, 1]) = _window_corner(clip_pos[v, 0], clip_pos[v, 1], clip_pos[v, 2], clip_pos[v, 3],
+                                          True, width, height)
+
+
+@numba.njit(cache=True, inline="always")
+def _window_corner(x, y, z, w, fused, width, height):
+    """One clip-space corner (x, y, z, w) -> window (x, y, z) as float32
+    values, 1/w (float32) and the corner snapped to 1/256 pixel (x, y int64),
+    as `softras.pipeline.setup.viewport_transform` and `softras.pipeline.setup.snap`
+    compute them in gl precision: llvmpipe's viewport transform with a fused
+    multiply-add for an input vertex (``fused``), an unfused one for a vertex
+    made by the clipper."""
+    oow = np.float32(1.0) / np.float32(w)
+    px = np.float64(np.float32(x) * oow)
+    py = np.float64(np.float32(y) * oow)
+    pz = np.float64(np.float32(z) * oow)
+    hx, hy, hz = width / 2.0, height / 2.0, 0.5
+    if fused:
+        wx = np.float64(np.float32(px * hx + hx))
+        wy = np.float64(np.float32(py * hy + hy))
+        wz = np.float64(np.float32(pz * hz + hz))
+    else:
+        wx = np.float64(np.float32(np.float32(px * hx) + np.float32(hx)))
+        wy = np.float64(np.float32(np.float32(py * hy) + np.float32(hy)))
+        wz = np.float64(np.float32(np.float32(pz * hz) + np.float32(hz)))
+    rx = np.int64(np.rint((np.float32(wx) - np.float32(0.5)) * np.float32(SUBPIXEL_ONE)))
+    ry = np.int64(np.rint((np.float32(wy) - np.float32(0.5)) * np.float32(SUBPIXEL_ONE)))
+    return wx, wy, wz, np.float64(oow), rx, ry
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _setup_range(start, stop, vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height,
+                 cull, offsets, tri_f, tri_i, bbox, attributes):
+    """`softras.pipeline.setup.setup_triangles` (gl precision) and the depth plane of
+    `softras.pipeline.interpolate.depth_at_samples`, for the clipped triangles start
+    to stop - 1 listed by `softras.pipeline.clip.triangle_list_gl` (source, slot,
+    fan_clip, fan_weights), the input vertices' window corners given
+    (`_window_vertices`).
+
+    Fills their rows of tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts
+    at the top of this module), bbox (T, 4) int64 (x0, x1, y0, y1 inclusive)
+    and the corner attributes (`_corner_values`) of ``attributes`` = (vertex
+    colours (V, 4), corner colours (T, 3, 4), vertex uvs (V, 2) or (0, 2)
+    when untextured, corner uvs (T, 3, 2)); the triangles that the pipeline
+    drops (zero area, culled, empty box) have tri_i[:, _I_VIS] == 0 and their
+    other entries undefined.
+    """
+    min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
+    min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
+    vertex_colors, corner_colors, vertex_uvs, corner_uvs = attributes
+    wx = np.empty(3)
+    wy = np.empty(3)
+    wz = np.empty(3)
+    iw = np.empty(3)
+    rx = np.empty(3, np.int64)
+    ry = np.empty(3, np.int64)
+    for t in range(start, stop):
+        tri_i[t, _I_VIS] = 0
+        tri_i[t, _I_SWAP] = 0
+        f = slot[t]
+        for k in range(3):
+            if f < 0:
+                v = indices[source[t], k]
+                wx[k], wy[k], wz[k], iw[k] = vertex_f[v, 0], vertex_f[v, 1], vertex_f[v, 2], vertex_f[v, 3]
+                rx[k], ry[k] = vertex_i[v, 0], vertex_i[v, 1]
+            else:
+                # A vertex made by the clipper has no weight exactly 1 (clip.generated).
+                fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
+                wx[k], wy[k], wz[k], iw[k], rx[k], ry[k] = _window_corner(
+                    fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2], fan_clip[f, k, 3], fused,
+                    width, height)
+        area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
+        front = area > 0
+        if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
+            continue
+        if not front:                           # swap corners 0 and 1 -> counter-clockwise
+            wx[0], wx[1] = wx[1], wx[0]
+            wy[0], wy[1] = wy[1], wy[0]
+            wz[0], wz[1] = wz[1], wz[0]
+            iw[0], iw[1] = iw[1], iw[0]
+            rx[0], rx[1] = rx[1], rx[0]
+            ry[0], ry[1] = ry[1], ry[0]
+            tri_i[t, _I_SWAP] = 1
+        # Bounding box in pixels, as setup_triangles computes it (its
+        # float ceil / floor of a multiple of 1/256 here in integers).
+        x_lo = -((max_ox - min(rx[0], min(rx[1], rx[2]))) >> SUBPIXEL_BITS)
+        x_hi = (max(rx[0], max(rx[1], rx[2])) - min_ox) >> SUBPIXEL_BITS
+        y_lo = -((max_oy - min(ry[0], min(ry[1], ry[2]))) >> SUBPIXEL_BITS)
+        y_hi = (max(ry[0], max(ry[1], ry[2])) - min_oy) >> SUBPIXEL_BITS
+        b0 = max(min(max(x_lo, -1), width), 0)
+        b1 = min(min(max(x_hi, -1), width), width - 1)
+        b2 = max(min(max(y_lo, -1), height), 0)
+        b3 = min(min(max(y_hi, -1), height), height - 1)
+        if b0 > b1 or b2 > b3:
+            continue
+        bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
+        for i in range(3):
+            j = (i + 1) % 3
+            x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
+            sign = 1
+            if x0 > x1 or (x0 == x1 and y0 > y1):
+                x0, y0, x1, y1 = x1, y1, x0, y0
+                sign = -1
+            a = (y0 - y1) * sign
+            b = (x1 - x0) * sign
+            tri_i[t, _I_A + i] = a
+            tri_i[t, _I_B + i] = b
+            tri_i[t, _I_X0 + i] = x0
+            tri_i[t, _I_Y0 + i] = y0
+            tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
+        tri_i[t, _I_VIS] = 1
+        for k in range(3):
+            tri_f[t, _F_X + k] = wx[k]
+            tri_f[t, _F_Y + k] = wy[k]
+            tri_f[t, _F_Z + k] = wz[k]
+            tri_f[t, _F_W + k] = iw[k]
+        dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
+        dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
+        det = dx1 * dy2 - dx2 * dy1
+        tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
+        tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
+        _corner_values(vertex_colors, corner_colors, t, indices, source, slot, fan_weights,
+                       tri_i[t, _I_SWAP])
+        if vertex_uvs.shape[0]:
+            _corner_values(vertex_uvs, corner_uvs, t, indices, source, slot, fan_weights,
+                           tri_i[t, _I_SWAP])
+
+
+@numba.njit(cache=True, inline="always")
+def _corner_values(values, out, t, indices, source, slot, fan_weights, swapped):
+    """`softras.pipeline.render.corner_values`: the attributes at set-up
+    triangle t's corners, out[t] (3, K), from the vertex values (V, K), as its
+    ``einsum("tkj,tjc->tkc", w, values[vertices])`` with the clip weights (identity for a passed-through
+    triangle) in set-up corner order and the same sum order."""
+    i0, i1, i2 = indices[source[t], 0], indices[source[t], 1], indices[source[t], 2]
+    f = slot[t]
+    for k in range(3):
+        row = 1 - k if swapped and k < 2 else k
+        if f < 0:
+            w0, w1, w2 = (1.0 if row == 0 else 0.0), (1.0 if row == 1 else 0.0), (1.0 if row == 2 else 0.0)
+        else:
+            w0, w1, w2 = fan_weights[f, row, 0], fan_weights[f, row, 1], fan_weights[f, row, 2]
+        for c in range(values.shape[1]):
+            out[t, k, c] = w0 * values[i0, c] + w1 * values[i1, c] + w2 * values[i2, c]

@@ -1,0 +1,337 @@
+"""Texture sampling for the compiled path.
+
+Mirrors `softras.pipeline.texture.sample` in gl precision for the samplers
+`softras.kernels.draw.unsupported` lets through (no anisotropy; nearest or
+linear, with or without mipmaps; any wrap; 8.8 fixed-point or float
+weights): the level of detail per 2x2 quad (`_quad_lod`), the texel
+addresses, the fetches and the filters, either per lane (`_sample_lane`, any
+filter) or vectorised over the lanes (`_lanes_bilinear_fixed`, 8.8 bilinear
+with power-of-two or clamped wraps).  The 8.8 filters run on RGBA8 texels
+spread into 16-bit lanes (`softras.kernels.rgba8`).
+
+`texture_tables` turns a prepared texture (`softras.pipeline.texture.prepare`)
+into the kernel's tables: a parameter vector (layout below), the mip chain's
+texels as one flat buffer and a level table.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from softras.kernels.lanes import (_LF_FRAC, _LF_S, _LF_SCALE, _LF_T, _LF_TEX, _LI_ADDR, _LI_BASE,
+                                   _LI_FRAC8, _LI_IMGF, _LI_LEVEL, _LI_LH, _LI_LW, _LI_TWO, _LI_W8, _LI_WORD)
+from softras.kernels.rgba8 import _HALF_LANES, _LANES, _lane, _spread, _unspread
+from softras.pipeline import texture as texture_stage
+from softras.pipeline.texture import WRAP_CODES, wrap_index
+from softras.scene.texels import levels_buffer
+
+FILTER_CODES = {"nearest": 0, "linear": 1}
+MIN_FILTERS = ("nearest", "linear") + texture_stage.MIPMAP_FILTERS
+# Texture parameter vector (int64): enabled, min image filter, mag filter,
+# mip mode (0 none, 1 nearest, 2 linear), wrap s, wrap t, fixed8, levels,
+# whether the vectorised filter applies (`_lanes_bilinear_fixed`).
+_T_ON, _T_MIN, _T_MAG, _T_MIP, _T_WS, _T_WT, _T_FIXED, _T_LEVELS, _T_VEC, _NT = range(10)
+
+
+_tables_cache: dict = {}
+
+
+def texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
+    """A prepared texture as the kernel's (params (_NT,) int64, texels (N,) uint8,
+    levels (L, 3) int64 offset / width / height) tables; cached per prepared
+    texture (`softras.pipeline.texture.prepare` returns the same object for a scene texture)."""
+    key = (id(tex), bool(fixed_point))
+    hit = _tables_cache.get(key)
+    if hit is not None and hit[0] is tex:
+        return hit[1]
+    tables = _texture_tables(tex, fixed_point)
+    if len(_tables_cache) >= 16:
+        _tables_cache.clear()
+    _tables_cache[key] = (tex, tables)
+    return tables
+
+
+def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
+    levels = tex.used_levels
+    table = np.zeros((len(levels), 3), np.int64)
+    at = 0
+    for k, level in enumerate(levels):
+        h, w = level.shape[:2]
+        table[k] = (at, w, h)
+        at += h * w * 4
+    flat = levels_buffer(levels)                    # the mip chain's own buffer: no copy
+    mip = 0
+    if tex.mipmapped:
+        mip = 1 if tex.min_filter.endswith("mipmap_nearest") else 2
+    fixed8 = fixed_point and texture_stage.uses_fixed_point(tex, True)
+    min_filter, mag_filter = FILTER_CODES[tex.min_filter.split("_")[0]], FILTER_CODES[tex.mag_filter]
+    h, w = levels[0].shape[:2]
+    # The vectorised filter: 8.8 bilinear on every level, wraps by mask or clamp
+    # (a power-of-two level 0 has power-of-two levels all the way down).
+    vectorised = (fixed8 and min_filter == mag_filter == FILTER_CODES["linear"]
+                  and all(mode == "clamp_to_edge" or (size & (size - 1)) == 0
+                          for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))))
+    params = np.array([1, min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t],
+                       int(fixed8), len(levels), int(vectorised)], np.int64)
+    return params, flat, table
+
+
+# ----------------------------------------------------------------------------- addresses and filters
+
+
+@numba.njit(cache=True, inline="always")
+def _nearest(s, size, mode):
+    """`softras.pipeline.texture.nearest_addresses` (gl): the texel index of coordinate s."""
+    return wrap_index(np.int64(np.floor(np.float32(s) * np.float32(size))), size, mode)
+
+
+@numba.njit(cache=True, inline="always")
+def _linear_fixed(s, size, mode):
+    """`softras.pipeline.texture.linear_addresses` with fixed8: (i0, i1, weight 0..255)."""
+    s32 = np.float32(s)
+    if mode == 0 and (size & (size - 1)) != 0:
+        f = s32 - np.float32(np.floor(s32))
+        fixed = np.int64(np.rint(np.float32(f * np.float32(size)) * np.float32(256))) - 128
+        weight = fixed & 255
+        i0 = fixed >> 8
+        if i0 < 0:
+            i0 = size - 1
+        i0 = min(i0, size - 1)
+        i1 = i0 + 1 if i0 != size - 1 else 0
+        return i0, i1, weight
+    fixed = np.int64(np.rint(np.float32(s32 * np.float32(size * 256)))) - 128
+    weight = fixed & 255
+    i0 = fixed >> 8
+    return wrap_index(i0, size, mode), wrap_index(i0 + 1, size, mode), weight
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _linear_float(s, size, mode):
+    """`softras.pipeline.texture.linear_addresses` with float weights
+    (`softras.scene.texels.linear_float_addresses`): (i0, i1, weight)."""
+    u = s * size - 0.5
+    fu = np.floor(u)
+    return wrap_index(np.int64(fu), size, mode), wrap_index(np.int64(fu) + 1, size, mode), u - fu
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _bilinear_float(a, b, t00, t10, t01, t11):
+    """The float bilinear filter of `softras.pipeline.texture.filter_level`
+    (`softras.scene.texels.bilinear`) on one channel: texels t00, t10 (row 0)
+    and t01, t11 (row 1), weights a across and b down."""
+    return (1 - a) * (1 - b) * t00 + a * (1 - b) * t10 + (1 - a) * b * t01 + a * b * t11
+
+
+@numba.njit(cache=True, inline="always")
+def _wrap_select(i, size, mode):
+    """`softras.pipeline.texture.wrap_index` for a power-of-two size (or clamp_to_edge, any size)
+    without branches, so that a loop over lanes vectorises."""
+    repeat = i & (size - 1)
+    clamped = min(max(i, 0), size - 1)
+    m = i & (2 * size - 1)
+    mirrored = m if m < size else 2 * size - 1 - m
+    return clamped if mode == 1 else (repeat if mode == 0 else mirrored)
+
+
+# k / 255 for every byte k (the same doubles as the division).
+_BYTE_VALUES = np.arange(256) / 255.0
+
+
+@numba.njit(cache=True, inline="always")
+def _lerp_lanes(w, a, b):
+    """`softras.pipeline.texture.lerp8` (``_lerp8(w, a, b) = a + ((w (b - a) +
+    128) >> 8)``) on all four lanes at
+    once, for 0 <= w <= 256: the same integer as ``((256 - w) a + w b + 128) >> 8``,
+    which stays below 2^16 in every lane (no carry between lanes)."""
+    return ((np.uint64(256 - w) * a + np.uint64(w) * b + _HALF_LANES) >> np.uint64(8)) & _LANES
+
+
+@numba.njit(cache=True, inline="always")
+def _bilerp_lanes(fa, fb, t00, t10, t01, t11):
+    """llvmpipe's 8.8 bilinear filter (`softras.pipeline.texture.filter_level`
+    with fixed8) on spread lanes: texels t00, t10 (row
+    0) and t01, t11 (row 1) with weights fa across and fb down (0..255)."""
+    return _lerp_lanes(fb, _lerp_lanes(fa, t00, t10), _lerp_lanes(fa, t01, t11))
+
+
+@numba.njit(cache=True, inline="always")
+def _lerp8(w, a, b):
+    """`softras.pipeline.texture.lerp8`: llvmpipe's 8.8 fixed-point lerp of
+    bytes a, b with weight w in 0..256."""
+    return a + ((w * (b - a) + 128) >> 8)
+
+
+# ----------------------------------------------------------------------------- level of detail
+
+
+@numba.njit(cache=True, inline="always")
+def _nan_max(x, y):
+    """np.maximum as `softras.pipeline.texture.rho_squared` takes it: NaN if
+    either is NaN (selects, no branches)."""
+    return x + y if (x != x) | (y != y) else (x if x >= y else y)
+
+
+_FLOAT32_TINY = np.float32(np.finfo(np.float32).tiny)
+
+
+@numba.njit(cache=True, inline="always")
+def _frexp32(x):
+    """np.frexp (of `softras.pipeline.texture.choose_levels` and
+    `softras.pipeline.texture.fast_log2`) of a float32 x from its bits: (mantissa in [0.5, 1) as
+    float32, exponent) for a normal x; (x, 0) for inf and NaN as C's frexp
+    gives them.  (Subnormals are not handled: callers pass x >= the
+    smallest normal or only use the exponent of x > 0, where a subnormal's
+    -126 and frexp's lower exponent select the same level.)"""
+    bits = np.int64(np.float32(x).view(np.int32))
+    field = (bits >> 23) & 255
+    special = field == 255
+    mantissa = np.int32((bits & 0x807FFFFF) | 0x3F000000).view(np.float32)
+    return (np.float32(x) if special else mantissa), (0 if special else field - 126)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, ddy_s, ddy_t):
+    """The level choice of `softras.pipeline.texture.sample` (gl precision:
+    `softras.pipeline.texture.rho_squared` and `softras.pipeline.texture.choose_levels`)
+    for one quad's derivatives (float32 values): (level0, level1, frac, image
+    filter, whether to blend two levels).  Written with selects, no branches
+    to mispredict and no call to frexp; lod = +-inf or NaN picks levels as the
+    float -> int64 conversion of numpy and llvmpipe does (the "integer
+    indefinite", negative)."""
+    w32 = np.float32(width0)
+    h32 = np.float32(height0)
+    du0 = np.float32(ddx_s) * w32
+    du1 = np.float32(ddx_t) * h32
+    dv0 = np.float32(ddy_s) * w32
+    dv1 = np.float32(ddy_t) * h32
+    rho2 = _nan_max(du0 * du0 + du1 * du1, dv0 * dv0 + dv1 * dv1)      # float32
+    magnified = not (rho2 > 1)
+    level0 = 0
+    level1 = 0
+    frac = 0.0
+    if mip == 1:
+        e = _frexp32(rho2)[1]                          # (rho2 > 0: a subnormal's -126 -> level 0 too)
+        level = e >> 1 if rho2 > 0 else 0
+        level0 = min(max(level, 0), last)
+        level1 = level0
+    elif mip == 2:
+        m, e = _frexp32(_nan_max(rho2, _FLOAT32_TINY))
+        log2 = np.float32(np.float32(e - 1) + (np.float32(2) * m - np.float32(1)))
+        lod = np.float32(0.5) * log2
+        ipart_f = np.float32(np.floor(lod))
+        frac = np.float64(np.float32(lod - ipart_f))
+        finite = np.abs(ipart_f) <= np.float32(1e6)     # (|lod| <= 64 when finite)
+        ipart = np.int64(ipart_f if finite else np.float32(-1e6))
+        frac = 0.0 if (ipart < 0) | (ipart >= last) else frac
+        level0 = min(max(ipart, 0), last)
+        level1 = min(max(ipart + 1, 0), last)
+    level0 = 0 if magnified else level0
+    image_filter = mag_filter if magnified else min_filter
+    two = (not magnified) & (level1 != level0) & (frac > 0)
+    return level0, level1, frac, image_filter, two
+
+
+# ----------------------------------------------------------------------------- the lanes
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, wrap_s, wrap_t):
+    """`softras.pipeline.texture.sample` (gl, fixed8, linear image filter, power-of-two or
+    clamped wraps) of every lane on its first level or (n_levels 2) its two
+    levels (the same level twice with mip weight 0 where the quad uses one):
+    addresses and 8.8 weights (`_linear_fixed`, vectorised), the 4 or 8 texel
+    fetches (scalar), the lane lerps (vectorised).  Writes the texel as k/255
+    floats into the _LF_TEX rows, or with ``words`` as its RGBA8 word into
+    the _LI_WORD row."""
+    for lv in range(n_levels):
+        for l in range(n):
+            lw, lh = li[_LI_LW + lv, l], li[_LI_LH + lv, l]
+            scale_s, scale_t = np.float32(lf[_LF_SCALE + 2 * lv, l]), np.float32(lf[_LF_SCALE + 2 * lv + 1, l])
+            fs = np.int64(np.rint(np.float32(np.float32(lf[_LF_S, l]) * scale_s))) - 128
+            ft = np.int64(np.rint(np.float32(np.float32(lf[_LF_T, l]) * scale_t))) - 128
+            li[_LI_FRAC8 + 2 * lv, l] = fs & 255
+            li[_LI_FRAC8 + 2 * lv + 1, l] = ft & 255
+            i0 = _wrap_select(fs >> 8, lw, wrap_s)
+            i1 = _wrap_select((fs >> 8) + 1, lw, wrap_s)
+            row0 = li[_LI_BASE + lv, l] + _wrap_select(ft >> 8, lh, wrap_t) * lw
+            row1 = li[_LI_BASE + lv, l] + _wrap_select((ft >> 8) + 1, lh, wrap_t) * lw
+            li[_LI_ADDR + 4 * lv, l] = row0 + i0
+            li[_LI_ADDR + 4 * lv + 1, l] = row0 + i1
+            li[_LI_ADDR + 4 * lv + 2, l] = row1 + i0
+            li[_LI_ADDR + 4 * lv + 3, l] = row1 + i1
+    for a in range(4 * n_levels):
+        for l in range(n):
+            lu[a, l] = _spread(texels32[li[_LI_ADDR + a, l]])
+    if n_levels == 2:
+        for l in range(n):
+            fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
+            fa1, fb1 = li[_LI_FRAC8 + 2, l], li[_LI_FRAC8 + 3, l]
+            x = _bilerp_lanes(fa0, fb0, lu[0, l], lu[1, l], lu[2, l], lu[3, l])
+            y = _bilerp_lanes(fa1, fb1, lu[4, l], lu[5, l], lu[6, l], lu[7, l])
+            lu[0, l] = _lerp_lanes(li[_LI_W8, l], x, y)
+    else:
+        for l in range(n):
+            fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
+            lu[0, l] = _bilerp_lanes(fa0, fb0, lu[0, l], lu[1, l], lu[2, l], lu[3, l])
+    # (Separate loops: one loop with a branch on ``words`` compiles to both
+    # sides computed and masked stores.)
+    if words:
+        for l in range(n):
+            li[_LI_WORD, l] = _unspread(lu[0, l])
+    else:
+        for l in range(n):
+            for c in range(4):
+                lf[_LF_TEX + c, l] = np.float64(_lane(lu[0, l], c)) / 255.0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8):
+    """`softras.pipeline.texture.sample` (gl precision) of lane l on its quad's level(s), any
+    filter and wrap (the scalar path beside `_lanes_bilinear_fixed`)."""
+    s_px, t_px = lf[_LF_S, l], lf[_LF_T, l]
+    image_filter = li[_LI_IMGF, l]
+    two = li[_LI_TWO, l] != 0
+    frac = lf[_LF_FRAC, l]
+    n_levels = 2 if two else 1
+    lanes = fixed8 or (image_filter == 0 and not two)
+    lanes_texel = np.uint64(0)
+    x = np.uint64(0)
+    for lv in range(n_levels):
+        level = li[_LI_LEVEL + lv, l]
+        base, lw, lh = table[level, 0], table[level, 1], table[level, 2]
+        if image_filter == 0:
+            i = _nearest(s_px, lw, wrap_s)
+            jj = _nearest(t_px, lh, wrap_t)
+            if lanes:
+                x = _spread(texels32[(base >> 2) + jj * lw + i])
+            else:
+                for c in range(4):
+                    texel[lv, c] = np.float64(texels[base + (jj * lw + i) * 4 + c])
+        elif lanes:
+            i0, i1, fa = _linear_fixed(s_px, lw, wrap_s)
+            j0, j1, fb = _linear_fixed(t_px, lh, wrap_t)
+            row0 = (base >> 2) + j0 * lw
+            row1 = (base >> 2) + j1 * lw
+            x = _bilerp_lanes(fa, fb, _spread(texels32[row0 + i0]), _spread(texels32[row0 + i1]),
+                              _spread(texels32[row1 + i0]), _spread(texels32[row1 + i1]))
+        else:
+            i0, i1, fa = _linear_float(s_px, lw, wrap_s)
+            j0, j1, fb = _linear_float(t_px, lh, wrap_t)
+            for c in range(4):
+                texel[lv, c] = _bilinear_float(
+                    fa, fb, np.float64(texels[base + (j0 * lw + i0) * 4 + c]),
+                    np.float64(texels[base + (j0 * lw + i1) * 4 + c]),
+                    np.float64(texels[base + (j1 * lw + i0) * 4 + c]),
+                    np.float64(texels[base + (j1 * lw + i1) * 4 + c]))
+        if lanes:
+            lanes_texel = x if lv == 0 else _lerp_lanes(li[_LI_W8, l], lanes_texel, x)
+    if lanes:
+        for c in range(4):
+            lf[_LF_TEX + c, l] = _BYTE_VALUES[_lane(lanes_texel, c)]
+    else:
+        if two:
+            for c in range(4):
+                texel[0, c] = texel[0, c] + frac * (texel[1, c] - texel[0, c])
+        for c in range(4):
+            lf[_LF_TEX + c, l] = texel[0, c] / 255.0
