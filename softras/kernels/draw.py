@@ -39,12 +39,6 @@ lit shading, anisotropic textures, other sample counts or clipping
 policies...).  A draw pays only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
 per-draw constants outside of the per-pixel work).
-
-Why one module of ~1300 lines: it is one fused kernel.  The set-up, binning
-and tile code share the row layouts of the set-up triangles (the ``_F_*``
-columns, ``tri_i``) and the framebuffer's byte and depth-integer encoding,
-and the small helpers are inlined (``inline="always"``) into the one tile
-kernel; the sections follow the steps listed above.
 """
 
 from __future__ import annotations
