@@ -111,7 +111,8 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
 
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
                    reuse: bool = False) -> np.ndarray:
-    """Render a scene that `unsupported` accepts at GL's sample positions (S, 2).
+    """`softras.pipeline.render.render_samples` of a scene that `unsupported`
+    accepts, at GL's sample positions (S, 2).
 
     Returns the per-sample colour buffer (H, W, S, 4) uint8, GL's y-up rows:
     byte k where the general pipeline stores the float k/255.  reuse: the
@@ -132,7 +133,8 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
 
 
 def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture_fixed_point) -> None:
-    """One triangle draw into the byte framebuffer (see the module docstring)."""
+    """One triangle draw into the byte framebuffer: `softras.pipeline.render._render_pass`'s
+    per-draw work for one draw (see the module docstring)."""
     mesh = draw.mesh
     width, height = scene.width, scene.height
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
@@ -230,7 +232,8 @@ def scratch_nbytes() -> int:
 
 
 def _make_draw_tiles(n_samples: int, textured: bool):
-    """The parallel tile driver compiled for one sample count (1 or 4,
+    """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
+    the parallel tile driver compiled for one sample count (1 or 4,
     `FAST_SAMPLES`) and textured or not, as constants (closure variables are
     compile-time constants to numba, and part of its cache key): the compiler
     unrolls the per-sample and per-quad loops and drops the texture code from
@@ -408,7 +411,9 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z, blend,
                 buffers, n_samples):
-    """Depth-test, shade and write the n lanes (covered pixels of one
+    """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
+    fragments (`softras.pipeline.fragment.shade_unlit` colours).
+    Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_tile` with pixel and coverage mask):
     depths (vectorised), the depth test keeping the lanes with a passed
     sample (scalar, without branches), perspective weights and colour bytes
@@ -453,7 +458,9 @@ def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z, blend,
                     plain, tex, buffers, n_samples):
-    """Shade the n lanes (n / 4 quads, listed by `_tile` with pixel, centre and
+    """`softras.pipeline.texture.sample` and `softras.pipeline.ops.apply_fragments`
+    of a textured triangle's fragments.
+    Shade the n lanes (n / 4 quads, listed by `_tile` with pixel, centre and
     coverage) of one textured triangle in one 8x8 block.
 
     Per quad the top-left, top-right and bottom-left lanes give the texture
