@@ -55,8 +55,9 @@ __all__ = ["main", "CLIError", "DEFAULT_DEMO_SCENE"]
 #: The demo scene of the README quick start, in the source checkout.
 DEFAULT_DEMO_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "demo.json"
 
-#: Where ``softras golden`` keeps the golden images, in the source checkout.
-DEFAULT_GOLDEN_DIR = Path(__file__).resolve().parents[1] / "golden"
+#: Where ``softras golden`` keeps the golden images: ``golden/`` of the current
+#: directory (relative: the user's project, never the installed package).
+DEFAULT_GOLDEN_DIR = Path("golden")
 
 #: Tolerances used when comparing two PNG files (same as softras.compare).
 DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99}
@@ -381,7 +382,8 @@ def cmd_golden(args: argparse.Namespace) -> int:
     else:
         paths = golden.default_scenes()
         if not paths:
-            raise CLIError(f"no scene files in {golden.SCENES_DIR}")
+            raise CLIError(f"no PATH given and no scene files in ./{golden.SCENES_DIR} "
+                           f"({golden.SCENES_DIR.absolute()}): name scene files or folders")
     golden_dir = Path(args.golden_dir)
     out_dir = _check_output_dir(args.out_dir) if args.out_dir is not None else None
 
@@ -838,12 +840,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "glref and replace the golden images, all or nothing.",
     )
     golden.add_argument("paths", nargs="*", metavar="PATH",
-                        help="scene files or folders of them (default: all of scenes/; a full --update "
-                             "also removes golden images whose scene is gone)")
+                        help="scene files or folders of them (default: all of ./scenes of the current "
+                             "directory; a full --update also removes golden images whose scene is gone)")
     golden.add_argument("--update", action="store_true",
                         help="render the scenes with glref and rewrite their golden images and manifest")
     golden.add_argument("--golden-dir", default=str(DEFAULT_GOLDEN_DIR), metavar="DIR",
-                        help=f"golden image folder (default {DEFAULT_GOLDEN_DIR})")
+                        help=f"golden image folder (default ./{DEFAULT_GOLDEN_DIR} of the current directory)")
     golden.add_argument("--out-dir", default=None, metavar="DIR",
                         help="verification: write golden, gl, soft and diff images of failed scenes "
                              "into DIR/<scene>/")
@@ -862,7 +864,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "what finished is written; --resume finishes it).",
     )
     conformance.add_argument("paths", nargs="*", metavar="PATH",
-                             help="scene files or folders of them (default: all of scenes/)")
+                             help="scene files or folders of them (default: all of ./scenes of the current "
+                                  "directory)")
     conformance.add_argument("--profile", choices=("auto", "strict", "spec"), default="auto",
                              help="strict: the scene's tolerance, bit-exact where softras reproduces the "
                                   "GL (llvmpipe 22.3); spec: per-pixel bounds of what any conformant GL "

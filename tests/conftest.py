@@ -7,6 +7,7 @@ section 9).  glref.context is the one place a context is created.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 
@@ -24,12 +25,14 @@ def pytest_addoption(parser):
 
 
 def pytest_sessionstart(session):
-    """``pytest --update-golden`` runs ``softras golden --update`` first, then the tests."""
+    """``pytest --update-golden`` runs ``softras golden --update`` in the repository's root
+    (its ./scenes and ./golden, wherever pytest was started), then the tests."""
     if not session.config.getoption("--update-golden", default=False):
         return
     from softras.cli import main
 
-    status = main(["golden", "--update"])
+    with contextlib.chdir(REPO):
+        status = main(["golden", "--update"])
     if status != 0:
         pytest.exit(f"softras golden --update failed (exit status {status})", returncode=status)
 

@@ -34,13 +34,18 @@ def documents() -> dict[str, str]:
 
 @functools.lru_cache(maxsize=1)
 def defined_tests() -> dict[str, set[str]]:
-    """{test file relative to tests/: the names of the test functions it defines}."""
+    """{test file relative to tests/: the names of the test functions it defines}.
+
+    The test files of the example projects (examples/*/tests/) count too, under
+    a path relative to tests/ (``../examples/...``): docs/pytest_plugin.md
+    shows their tests."""
     found = {}
-    for path in TESTS.rglob("test_*.py"):
+    for path in [*TESTS.rglob("test_*.py"), *(REPO / "examples").glob("*/tests/test_*.py")]:
         tree = ast.parse(path.read_text(encoding="utf-8"))
-        found[str(path.relative_to(TESTS))] = {node.name for node in ast.walk(tree)
-                                               if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
-                                               and node.name.startswith("test_")}
+        key = str(path.relative_to(TESTS)) if TESTS in path.parents else "../" + str(path.relative_to(REPO))
+        found[key] = {node.name for node in ast.walk(tree)
+                      if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+                      and node.name.startswith("test_")}
     return found
 
 

@@ -21,7 +21,7 @@ from softras.verification import golden
 from softras.cli import main
 from softras.scene.imageio import read_png
 
-from conftest import write_failure_images
+from conftest import REPO, SCENES, write_failure_images
 
 # Two tiny scenes in pixel units (orthographic, 1 unit = 1 pixel).
 TRIANGLE = {
@@ -83,10 +83,10 @@ def by_name(results) -> dict:
 # Without GL
 
 
-def test_golden_path_is_scene_stem_png_in_repo_golden():
-    assert golden.golden_path("scenes/fill_rule_grid.json") == golden.REPO / "golden" / "fill_rule_grid.png"
+def test_golden_path_is_scene_stem_png_in_golden_of_the_current_directory():
+    assert golden.golden_path("scenes/fill_rule_grid.json") == Path("golden") / "fill_rule_grid.png"
     assert golden.golden_path("/x/y/a.json", "/g") == Path("/g/a.png")
-    assert golden.SCENES_DIR == golden.REPO / "scenes"
+    assert golden.SCENES_DIR == Path("scenes") and golden.GOLDEN_DIR == Path("golden")
 
 
 def test_pixel_hash_is_of_decoded_pixels_not_png_bytes(tmp_path):
@@ -310,10 +310,10 @@ def test_cli_update_and_verify(scenes, tmp_path, capsys):
 @pytest.mark.gl
 def test_repository_golden_images_verify(tmp_path):
     """The committed golden/ matches glref and softras for every scene in scenes/."""
-    paths = golden.default_scenes()
+    paths = golden.default_scenes(SCENES)
     if not paths:
         pytest.skip("no scenes in scenes/")
-    results = golden.verify(paths, golden.GOLDEN_DIR, orphans=True, keep_images=True)
+    results = golden.verify(paths, REPO / "golden", orphans=True, keep_images=True)
     failed = [r for r in results if not r.passed]
     for result in failed:
         if result.images:
@@ -385,7 +385,7 @@ def test_pytest_update_golden_option_runs_softras_golden_update(monkeypatch, cap
     calls = []
 
     def update(paths, golden_dir=None, *, prune=False, on_change=None):
-        calls.append((list(paths), Path(golden_dir), prune))
+        calls.append((Path.cwd(), list(paths), Path(golden_dir), prune))
         return []
 
     monkeypatch.setattr(golden, "update", update)
@@ -405,5 +405,7 @@ def test_pytest_update_golden_option_runs_softras_golden_update(monkeypatch, cap
     conftest.pytest_sessionstart(Session(False))
     assert calls == []
     conftest.pytest_sessionstart(Session(True))
-    assert calls == [(golden.default_scenes(), golden.GOLDEN_DIR, True)]
+    # In the repository's root, wherever pytest runs: its ./scenes and ./golden.
+    assert [(cwd, golden_dir, prune) for cwd, _, golden_dir, prune in calls] == [(REPO, Path("golden"), True)]
+    assert [REPO / path for path in calls[0][1]] == golden.default_scenes(SCENES)
     assert "golden update" in capsys.readouterr().out

@@ -223,15 +223,17 @@ def _unsupported(scene, capabilities: dict) -> str | None:
     return glref.unsupported(scene, capabilities=capabilities)
 
 
-def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
+def check_scene(path, *, render_soft: Callable | None = None,
                 render_gl: Callable | None = None, tolerance: dict | None = None,
-                profile: str = "auto") -> SceneResult:
+                profile: str = "auto", name: str | None = None) -> SceneResult:
     """Run one scene through both renderers and judge it.
 
     Parameters
     ----------
-    path : path
-        A scene file.
+    path : path, dict or Scene
+        A scene file, or a scene built in memory (a dict in the scene format
+        or a :class:`softras.scene.Scene`). Its tolerance: the one the file
+        or dict declares, else the defaults for its features.
     render_soft, render_gl : callable, optional
         ``render(scene) -> (H, W, 4) uint8``; default softras (precision
         "gl") and glref. (Tests pass broken ones.) ``render_soft`` also draws
@@ -241,6 +243,8 @@ def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
         Overrides the scene's tolerance (:func:`scene_tolerance`).
     profile : "auto", "strict" or "spec"
         :func:`softras.verification.verifier.choose_profile` with the GL's capability record.
+    name : str, optional
+        The result's name (default: the file's stem; ``"scene"`` for a scene in memory).
 
     Returns
     -------
@@ -255,13 +259,17 @@ def check_scene(path: str | os.PathLike, *, render_soft: Callable | None = None,
 
     render_soft = render_soft or _render_soft
     render_gl = render_gl or _render_gl
-    path = Path(path)
+    source = path
+    path = Path(path) if isinstance(path, (str, os.PathLike)) else None
     start = time.perf_counter()
-    result = SceneResult(name=path.stem, path=str(path))
+    result = SceneResult(name=name or (path.stem if path is not None else "scene"),
+                         path=str(path) if path is not None else "")
     try:
-        scene = load_scene(path)
+        scene = load_scene(source)
         result.description = scene.description
         result.tolerance, result.tolerance_source = scene_tolerance(path, scene)
+        if isinstance(source, dict) and "tolerance" in source:
+            result.tolerance, result.tolerance_source = dict(scene.tolerance), "scene"
         if tolerance is not None:
             result.tolerance, result.tolerance_source = dict(tolerance), "given"
         capabilities = _gl_info()

@@ -1,8 +1,14 @@
 """Golden images: glref's renderings of the conformance scenes, kept in git.
 
-``golden/`` (docs/design.md section 1) holds one PNG per scene of ``scenes/``,
-``golden/<scene stem>.png``, rendered by glref, and a ``manifest.json`` that
-says where they came from and what they contain::
+A golden folder holds one PNG per scene, ``<golden folder>/<scene stem>.png``,
+rendered by glref, and a ``manifest.json`` that says where they came from and
+what they contain. Both folders belong to the project being checked, never to
+the installed package: ``softras golden`` with no PATH uses ``./scenes`` and
+``./golden`` of the current directory (this repository's own ``scenes/`` and
+``golden/`` when run from its root, docs/design.md section 1), and
+``--golden-dir`` (or the ``golden_dir`` argument) names any other folder; the
+pytest plugin keeps a test's golden images in ``golden/`` beside its test
+module (docs/pytest_plugin.md). The manifest::
 
     {
       "softras_golden": 1,
@@ -19,16 +25,20 @@ says where they came from and what they contain::
 
 ``sha256`` is the hash of the *decoded* pixels (RGBA ``uint8``, row 0 = top,
 rows then columns then channels), not of the PNG file, so re-encoding a PNG
-does not change it while any edit of a pixel does. ``provenance.date`` is the
-time of the last update that changed something; an image's ``date`` the time
-its pixels last changed.
+does not change it while any edit of a pixel does. ``provenance`` describes
+the update that last changed something (``date`` is its time); an image's
+``date`` the time its pixels last changed.
 
 :func:`update` (``softras golden --update``) is the only writer. It builds the
 new folder beside ``golden/`` (``.golden.new-*``) and swaps it in with renames
 (an atomic exchange where the OS has one), so an interrupted or failed update
-leaves ``golden/`` exactly as it was. All images of one folder come from one
-OpenGL implementation: updating a subset of the scenes on a machine whose GL
-differs from the manifest's is refused.
+leaves ``golden/`` exactly as it was. An update that changes no image (the
+same pixels, scenes and files, on the same OpenGL with the same capability
+record) writes nothing at all, not even a temporary folder: the manifest keeps
+the provenance of the update that made the images, whatever the date or the
+versions of Python and the libraries now. All images of one folder come from
+one OpenGL implementation: updating a subset of the scenes on a machine whose
+GL differs from the manifest's is refused.
 
 :func:`verify` (``softras golden``) checks, for each scene:
 
@@ -68,16 +78,15 @@ from typing import Callable, Iterable
 import numpy as np
 
 __all__ = [
-    "REPO", "SCENES_DIR", "GOLDEN_DIR", "MANIFEST", "GoldenError", "Change", "Verification",
+    "SCENES_DIR", "GOLDEN_DIR", "MANIFEST", "GoldenError", "Change", "Verification",
     "golden_path", "default_scenes", "pixel_hash", "provenance", "read_manifest", "update", "verify",
 ]
 
-#: The repository root (a source checkout).
-REPO = Path(__file__).resolve().parents[2]
-#: Where the conformance scenes live.
-SCENES_DIR = REPO / "scenes"
-#: Where their golden images live.
-GOLDEN_DIR = REPO / "golden"
+#: Where the scenes live by default: ``scenes/`` of the current directory (a
+#: relative path, resolved when used, never the installed package's folder).
+SCENES_DIR = Path("scenes")
+#: Where their golden images live by default: ``golden/`` of the current directory.
+GOLDEN_DIR = Path("golden")
 #: Name of the manifest file inside the golden folder.
 MANIFEST = "manifest.json"
 #: Version of the manifest format.
@@ -108,14 +117,19 @@ def _one_line(text: object) -> str:
 def golden_path(scene_path: str | os.PathLike, golden_dir: str | os.PathLike | None = None) -> Path:
     """The golden image of a scene: ``<golden_dir>/<scene stem>.png``.
 
-    ``golden_dir`` defaults to ``golden/`` at the repository root.
+    ``golden_dir`` defaults to ``golden/`` of the current directory
+    (:data:`GOLDEN_DIR`, relative).
     """
     return Path(golden_dir if golden_dir is not None else GOLDEN_DIR) / f"{Path(scene_path).stem}.png"
 
 
-def default_scenes() -> list[Path]:
-    """All scene files of the repository, ``scenes/*.json``, sorted."""
-    return sorted(SCENES_DIR.glob("*.json"))
+def default_scenes(scenes_dir: str | os.PathLike | None = None) -> list[Path]:
+    """The scene files of a folder, ``*.json``, sorted.
+
+    ``scenes_dir`` defaults to ``scenes/`` of the current directory
+    (:data:`SCENES_DIR`): this repository's scenes when run from its root.
+    """
+    return sorted(Path(scenes_dir if scenes_dir is not None else SCENES_DIR).glob("*.json"))
 
 
 def pixel_hash(image: np.ndarray) -> str:
@@ -181,6 +195,13 @@ def provenance(info: dict | None = None) -> dict:
 
 def _gl_identity(prov: dict | None) -> tuple:
     return tuple((prov or {}).get(key) for key in _GL_IDENTITY)
+
+
+def _gl_record(prov: dict | None) -> tuple:
+    """What of a provenance describes the GL that drew the images: its identity,
+    capability record and depth format (not the date, the machine's tools or versions)."""
+    prov = prov or {}
+    return _gl_identity(prov) + (prov.get("capabilities"), prov.get("depth_format"))
 
 
 def _describe_gl(prov: dict | None) -> str:
@@ -385,7 +406,7 @@ def update(
     scene_paths : iterable of path
         The scene files to (re)render.
     golden_dir : path, optional
-        The golden folder (default ``golden/`` at the repository root).
+        The golden folder (default ``golden/`` of the current directory).
     prune : bool
         Remove golden images of scenes not in ``scene_paths`` (a full update).
         Without it the other existing images and their manifest entries are
@@ -433,82 +454,91 @@ def update(
             on_change(change)
         return change
 
+    # 1. Render every scene and compare it with the image it would replace, in
+    #    memory: nothing is written before it is known that something changes.
+    now = prov["date"]
+    updating = {golden_path(path, golden_dir).name for path, _ in scenes}
     changes: list[Change] = []
+    entries: dict[str, dict] = {}
+    fresh: dict[str, np.ndarray | None] = {}   # name -> new pixels (None: keep the old file's bytes)
+    for path, scene in scenes:
+        name = golden_path(path, golden_dir).name
+        image = np.ascontiguousarray(_render_gl(scene), dtype=np.uint8)
+        height, width = image.shape[:2]
+        entry = {"scene": path.name, "width": width, "height": height,
+                 "sha256": pixel_hash(image), "date": now}
+        old_file = golden_dir / name
+        old = None
+        if old_file.is_file():
+            try:
+                old = read_png(old_file)
+            except ImageError:
+                old = None
+        fresh[name] = image
+        if old is None:
+            change = Change(name, "added", str(path), detail=f"{width}x{height}")
+        elif old.shape != image.shape:
+            change = Change(name, "changed", str(path),
+                            detail=f"size {old.shape[1]}x{old.shape[0]} -> {width}x{height}")
+        else:
+            count = _diff_pixels(old, image)
+            old_entry = old_images.get(name)
+            if count == 0 and old_entry and old_entry.get("sha256") == entry["sha256"]:
+                change = Change(name, "unchanged", str(path), diff_pixels=0)
+                fresh[name] = None
+                entry["date"] = old_entry.get("date", now)
+            elif count == 0:
+                change = Change(name, "changed", str(path), diff_pixels=0,
+                                detail="same pixels, manifest entry rewritten")
+            else:
+                change = Change(name, "changed", str(path), diff_pixels=count,
+                                detail=f"{count} pixel{'s' if count != 1 else ''} differ")
+        if old_images.get(name, {}).get("scene") not in (None, path.name) and change.status == "unchanged":
+            change.status, change.detail = "changed", f"scene is now {path.name}"
+        entries[name] = entry
+        changes.append(report(change))
+
+    # 2. What else the folder holds: kept as it is, or removed (a full update
+    #    drops the images of scenes that are gone).
     removed: list[Change] = []
+    kept: list[Path] = []
+    if golden_dir.is_dir():
+        for item in sorted(golden_dir.iterdir()):
+            if item.name == MANIFEST or item.name in updating:
+                continue
+            if item.suffix.lower() == ".png" and (prune or item.name not in old_images):
+                removed.append(Change(item.name, "removed", detail="no scene" if prune else "not in manifest"))
+                continue
+            kept.append(item)
+            if item.name in old_images:
+                entries[item.name] = old_images[item.name]
+        for name in sorted(set(old_images) - updating - set(entries)):
+            if not any(change.name == name for change in removed):
+                removed.append(Change(name, "removed", detail="file was missing"))
+    for change in removed:
+        report(change)
+
+    # 3. Nothing changed: write nothing (not even the new date or tool versions).
+    modified = any(change.status != "unchanged" for change in changes) or bool(removed)
+    same_gl = old_manifest is not None and _gl_record(old_manifest["provenance"]) == _gl_record(prov)
+    if not modified and same_gl and old_images == entries:
+        return changes + removed
+
+    # 4. Build the new folder beside the old one and swap it in.
     temp = Path(tempfile.mkdtemp(prefix=f".{golden_dir.name}.new-", dir=golden_dir.absolute().parent))
     try:
-        updating = {golden_path(path, golden_dir).name for path, _ in scenes}
-        entries: dict[str, dict] = {}
-
-        # Keep what is not being updated (or drop it, for a full update).
-        if golden_dir.is_dir():
-            for item in sorted(golden_dir.iterdir()):
-                if item.name == MANIFEST or item.name in updating:
-                    continue
-                if item.suffix.lower() == ".png" and (prune or item.name not in old_images):
-                    removed.append(Change(item.name, "removed", detail="no scene" if prune else "not in manifest"))
-                    continue
-                if item.is_dir():
-                    shutil.copytree(item, temp / item.name, symlinks=True)
-                else:
-                    shutil.copy2(item, temp / item.name, follow_symlinks=False)
-                    _fsync_file(temp / item.name)
-                if item.name in old_images:
-                    entries[item.name] = old_images[item.name]
-            for name in sorted(set(old_images) - updating - set(entries)):
-                if not any(change.name == name for change in removed):
-                    removed.append(Change(name, "removed", detail="file was missing"))
-
-        now = prov["date"]
-        for path, scene in scenes:
-            name = golden_path(path, golden_dir).name
-            image = np.ascontiguousarray(_render_gl(scene), dtype=np.uint8)
-            height, width = image.shape[:2]
-            entry = {"scene": path.name, "width": width, "height": height,
-                     "sha256": pixel_hash(image), "date": now}
-            old_file = golden_dir / name
-            old = None
-            if old_file.is_file():
-                try:
-                    old = read_png(old_file)
-                except ImageError:
-                    old = None
-            if old is None:
-                change = Change(name, "added", str(path), detail=f"{width}x{height}")
-                write_png_atomic(temp / name, image)
-            elif old.shape != image.shape:
-                change = Change(name, "changed", str(path),
-                                detail=f"size {old.shape[1]}x{old.shape[0]} -> {width}x{height}")
-                write_png_atomic(temp / name, image)
+        for item in kept:
+            if item.is_dir():
+                shutil.copytree(item, temp / item.name, symlinks=True)
             else:
-                count = _diff_pixels(old, image)
-                old_entry = old_images.get(name)
-                if count == 0 and old_entry and old_entry.get("sha256") == entry["sha256"]:
-                    change = Change(name, "unchanged", str(path), diff_pixels=0)
-                    shutil.copy2(old_file, temp / name)
-                    _fsync_file(temp / name)
-                    entry["date"] = old_entry.get("date", now)
-                elif count == 0:
-                    change = Change(name, "changed", str(path), diff_pixels=0,
-                                    detail="same pixels, manifest entry rewritten")
-                    write_png_atomic(temp / name, image)
-                else:
-                    change = Change(name, "changed", str(path), diff_pixels=count,
-                                    detail=f"{count} pixel{'s' if count != 1 else ''} differ")
-                    write_png_atomic(temp / name, image)
-            if old_images.get(name, {}).get("scene") not in (None, path.name) and change.status == "unchanged":
-                change.status, change.detail = "changed", f"scene is now {path.name}"
-            entries[name] = entry
-            changes.append(report(change))
-        for change in removed:
-            report(change)
-
-        modified = any(change.status != "unchanged" for change in changes) or bool(removed)
-        same_prov = old_manifest is not None and (
-            {k: v for k, v in old_manifest["provenance"].items() if k != "date"}
-            == {k: v for k, v in prov.items() if k != "date"})
-        if not modified and same_prov and old_images == entries:
-            return changes + removed  # nothing to do: golden/ stays byte for byte
+                shutil.copy2(item, temp / item.name, follow_symlinks=False)
+                _fsync_file(temp / item.name)
+        for name, image in fresh.items():
+            if image is None:
+                shutil.copy2(golden_dir / name, temp / name)
+                _fsync_file(temp / name)
+            else:
+                write_png_atomic(temp / name, image)
         manifest = {"softras_golden": FORMAT, "provenance": prov,
                     "images": dict(sorted(entries.items()))}
         manifest_path = temp / MANIFEST
@@ -591,7 +621,7 @@ def verify(
     scene_paths : iterable of path
         The scenes to verify.
     golden_dir : path, optional
-        The golden folder (default ``golden/`` at the repository root).
+        The golden folder (default ``golden/`` of the current directory).
     orphans : bool
         Also report, as failures, golden images whose scene is not among
         ``scene_paths`` (used when verifying all scenes).
