@@ -46,6 +46,14 @@ textured floor, 4x MSAA, translucent layers blended "over"; the scaling
 sweeps vary triangles (1k to 1M) at 512^2 and pixels (256^2 to 2048^2) at
 about 2k triangles, gl level only, and fit ``time ~ n^k`` by least squares
 on log-log (k near 1 is linear).
+
+The loader
+----------
+``loader`` (`loader_times`): the median time of ``softras.load_scene`` on a
+scene whose mesh is written out as explicit arrays (the 24k- and
+100k-triangle grids, `explicit_grid_scene`), against ``json.load`` of the
+same file, interleaved, and their ratio: what validation and conversion
+cost beyond reading the JSON at all.
 """
 
 from __future__ import annotations
@@ -307,6 +315,48 @@ def _file_times(scene_dict: dict, options: dict, runs: int) -> tuple[float, floa
         os.unlink(path)
 
 
+LOADER_GRIDS = (110, 224)     # explicit-array grids of the loader figure: 24k and 100k triangles
+LOADER_RUNS = 9
+
+
+def explicit_grid_scene(cols: int) -> dict:
+    """`grid_scene` with its mesh written out as explicit arrays (positions,
+    indices, colours), as a user's exported model arrives: the scene of the
+    loader figure."""
+    from softras.scene import meshes
+    scene = grid_scene(cols, 512)
+    mesh = meshes.grid(cols, cols, (2.5, 2.5), [[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]])
+    scene["nodes"][0]["mesh"] = {"positions": mesh.positions.tolist(), "indices": mesh.indices.tolist(),
+                                 "colors": np.clip(mesh.colors, 0.0, 1.0).tolist()}
+    return scene
+
+
+def loader_times(cols: int, runs: int = LOADER_RUNS) -> dict:
+    """Median seconds of ``json.load`` and of ``softras.load_scene`` on the
+    `explicit_grid_scene` written to a file, interleaved, and their ratio (the
+    scene layer's cost beyond reading the JSON: validation and conversion to
+    arrays)."""
+    import softras
+    handle, path = tempfile.mkstemp(suffix=".json", prefix="softras-bench-")
+    try:
+        with os.fdopen(handle, "w") as out:
+            json.dump(explicit_grid_scene(cols), out)
+        json_s, load_s = [], []
+        for _ in range(runs):
+            start = time.perf_counter()
+            with open(path, encoding="utf-8") as file:
+                json.load(file)
+            json_s.append(time.perf_counter() - start)
+            start = time.perf_counter()
+            scene = softras.load_scene(path)
+            load_s.append(time.perf_counter() - start)
+        json_median, load_median = statistics.median(json_s), statistics.median(load_s)
+        return {"triangles": len(scene.draws[0].mesh.indices), "megabytes": os.path.getsize(path) / 1e6,
+                "json_seconds": json_median, "load_seconds": load_median, "ratio": load_median / json_median}
+    finally:
+        os.unlink(path)
+
+
 def fit_exponent(sizes, seconds) -> float:
     """Least-squares slope of log(seconds) against log(size)."""
     x, y = np.log(np.asarray(sizes, float)), np.log(np.asarray(seconds, float))
@@ -357,7 +407,12 @@ def run(runs: int = 3, full: bool = False, max_triangles: int = 1_000_000, max_s
             fits[key + "_exponent"] = fit_exponent([p[0] for p in points], [p[1] for p in points])
     echo("cost fits (time ~ n^k, gl level; 1.0 = linear): "
          + ", ".join(f"{k} {v:.2f}" for k, v in fits.items()))
-    report = {"rows": [asdict(r) for r in rows], "fits": fits, "runs": runs, "full": full,
+    loader = [loader_times(cols) for cols in LOADER_GRIDS]
+    for figure in loader:
+        echo(f"loader: {figure['triangles']} triangles as explicit arrays ({figure['megabytes']:.1f} MB): "
+             f"load_scene {figure['load_seconds'] * 1e3:.1f} ms, json.load {figure['json_seconds'] * 1e3:.1f} ms, "
+             f"ratio {figure['ratio']:.2f}")
+    report = {"rows": [asdict(r) for r in rows], "fits": fits, "loader": loader, "runs": runs, "full": full,
               "truth": TRUTH, "levels": [asdict(level) for level in LEVELS],
               "memory": "peak_mib: tracemalloc peak of one render (numpy and Python allocations, not "
                         "numba-internal ones); rss_mib: process peak RSS so far (getrusage)"}

@@ -95,6 +95,7 @@ def test_run_writes_json_and_plot(tmp_path, monkeypatch):
              bench.BenchScene("t2", bench.grid_scene(8, 32), levels=False, series="triangles")]
     monkeypatch.setattr(bench, "scenes", lambda *args, **kwargs: small)
     monkeypatch.setattr(bench, "LEVELS", [bench.Level("gl", {"precision": "gl"}, "gl")])
+    monkeypatch.setattr(bench, "LOADER_GRIDS", (4,))
     lines = []
     report = bench.run(runs=1, out_json=str(tmp_path / "b.json"), out_plot=str(tmp_path / "b.png"),
                        echo=lines.append)
@@ -102,4 +103,6 @@ def test_run_writes_json_and_plot(tmp_path, monkeypatch):
     assert saved["fits"] == report["fits"] and "triangles_exponent" in saved["fits"]
     assert [r["scene"] for r in saved["rows"]] == ["grid", "t1", "t2"]
     assert (tmp_path / "b.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert lines[0] == bench.HEADER and lines[-1].startswith("cost fits")
+    assert lines[0] == bench.HEADER and lines[-2].startswith("cost fits")
+    assert lines[-1].startswith("loader: 32 triangles as explicit arrays") and "ratio" in lines[-1]
+    assert saved["loader"][0]["triangles"] == 32 and saved["loader"][0]["ratio"] > 0

@@ -44,6 +44,7 @@ the keys; the records are in `softras.scene.model`).
 from __future__ import annotations
 
 import difflib
+import itertools
 import json
 import math
 import numbers
@@ -95,12 +96,21 @@ def _number(value, place: str, lo: float = -math.inf, hi: float = math.inf) -> f
     if not math.isfinite(value):
         raise SceneError(place, f"expected a finite number, got {value}")
     if not lo <= value <= hi:
+        shown = _shown(value)
         if hi == math.inf:
-            raise SceneError(place, f"must be at least {lo:g}, got {value:g}")
+            raise SceneError(place, f"must be at least {lo:g}, got {shown}")
         if lo == -math.inf:
-            raise SceneError(place, f"must be at most {hi:g}, got {value:g}")
-        raise SceneError(place, f"{value:g} is out of range [{lo:g}, {hi:g}]")
+            raise SceneError(place, f"must be at most {hi:g}, got {shown}")
+        raise SceneError(place, f"{shown} is out of range [{lo:g}, {hi:g}]")
     return value
+
+
+def _shown(value: float) -> str:
+    """``value`` as short as it reads back exactly: "1" for 1.0, but
+    "1.0000000000000002" for the float just above 1 (which %g shows as "1",
+    an error message saying "1 is out of range [0, 1]")."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(value)
 
 
 def _positive(value, place: str) -> float:
@@ -187,8 +197,11 @@ def _array(value, width: int | tuple[int, ...], place: str, lo: float = -math.in
     """A list of rows of ``width`` finite numbers -> (N, width) float64.
 
     All rows must have the same length (``width`` may allow several)."""
-    rows = _list(value, place)
     widths = (width,) if isinstance(width, int) else width
+    fast = _fast_array(value, widths, lo, hi)
+    if fast is not None:
+        return fast
+    rows = _list(value, place)
     if not rows:
         return np.zeros((0, widths[0]))
     first = _list(rows[0], f"{place}[0]")
@@ -218,6 +231,9 @@ def _array(value, width: int | tuple[int, ...], place: str, lo: float = -math.in
 def _indices(value, width: int, vertex_count: int, place: str) -> np.ndarray:
     """Triangles (width 3) or lines (width 2), nested ([[0,1,2], ...]) or flat
     ([0,1,2, ...]), each index an integer in [0, vertex_count)."""
+    fast = _fast_indices(value, width, vertex_count)
+    if fast is not None:
+        return fast
     items = _list(value, place)
     if items and not isinstance(items[0], (list, tuple, np.ndarray)):
         if len(items) % width:
@@ -242,6 +258,82 @@ def _indices(value, width: int, vertex_count: int, place: str) -> np.ndarray:
             if not 0 <= index < vertex_count:
                 raise SceneError(index_place, f"index {index} out of range for {vertex_count} positions")
             out[g, k] = index
+    return out
+
+
+# The fast paths of `_array` and `_indices`: a mesh's arrays as JSON gives
+# them (lists of lists of int and float) or as numpy arrays, validated with
+# whole-array checks.  They return None on anything unusual, valid or not
+# (tuples, numpy scalars, a bad row); the element-by-element code after them
+# then accepts it or raises with the exact place, so both paths accept the
+# same input and every error message comes from one place.
+
+
+def _uniform_rows(value, widths) -> int | None:
+    """The common row length of ``value``, a list of lists each of one length
+    in ``widths``, whose every entry is a JSON number (int or float, not bool);
+    None otherwise."""
+    if type(value) is not list or not value or set(map(type, value)) != {list}:
+        return None
+    lengths = set(map(len, value))
+    if len(lengths) != 1:
+        return None
+    row_width = lengths.pop()
+    if row_width not in widths or not set(map(type, itertools.chain.from_iterable(value))) <= {float, int}:
+        return None
+    return row_width
+
+
+def _fast_array(value, widths, lo: float, hi: float) -> np.ndarray | None:
+    """`_array`'s result, (N, width) float64, when ``value`` is valid and plain
+    (see above); None otherwise."""
+    if isinstance(value, np.ndarray):
+        if value.ndim != 2 or value.shape[1] not in widths or value.dtype.kind not in "fiu" or not len(value):
+            return None
+        out = value.astype(np.float64)
+    else:
+        if _uniform_rows(value, widths) is None:
+            return None
+        try:
+            out = np.array(value, dtype=np.float64)
+        except OverflowError:                    # an int beyond float64's range
+            return None
+    with np.errstate(invalid="ignore"):
+        if not (np.isfinite(out).all() and (lo == -math.inf or out.min() >= lo)
+                and (hi == math.inf or out.max() <= hi)):
+            return None
+    return out
+
+
+def _fast_indices(value, width: int, vertex_count: int) -> np.ndarray | None:
+    """`_indices`' result, (N, width) int64, when ``value`` is valid and plain:
+    a list of lists of ``width`` ints or a flat list of ints (or an integer
+    numpy array of either shape), all in [0, vertex_count); None otherwise."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "iu" or value.ndim not in (1, 2) or not value.size:
+            return None
+        out = value.astype(np.int64)
+    elif type(value) is list and value and type(value[0]) is list:
+        if _uniform_rows(value, (width,)) is None or not set(map(type, itertools.chain.from_iterable(value))) <= {int}:
+            return None
+        try:
+            out = np.array(value, dtype=np.int64)
+        except OverflowError:
+            return None
+    elif type(value) is list and value:
+        if set(map(type, value)) != {int}:
+            return None
+        try:
+            out = np.array(value, dtype=np.int64)
+        except OverflowError:
+            return None
+    else:
+        return None
+    if out.size % width or (out.ndim == 2 and out.shape[1] != width):
+        return None
+    out = out.reshape(-1, width)
+    if out.min() < 0 or out.max() >= vertex_count:
+        return None
     return out
 
 
