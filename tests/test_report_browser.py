@@ -47,8 +47,9 @@ PROBE = """JSON.stringify({
 
 
 def chromium() -> str:
-    found = os.environ.get("SOFTRAS_CHROMIUM") or next(
-        (path for name in ("chromium", "chromium-browser", "google-chrome") if (path := shutil.which(name))), None)
+    names = [os.environ["SOFTRAS_CHROMIUM"]] if os.environ.get("SOFTRAS_CHROMIUM") else \
+        ["chromium", "chromium-browser", "google-chrome"]
+    found = next((path for name in names if (path := shutil.which(name))), None)
     if found is None:
         message = "no Chromium (apt-get install chromium, or SOFTRAS_CHROMIUM=PATH)"
         if os.environ.get("SOFTRAS_ALLOW_NO_BROWSER") == "1":
