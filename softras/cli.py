@@ -13,6 +13,7 @@
     softras conformance [PATH ...] [--report DIR] [-k PATTERN] [--shard I/N] [-j N]
                         [--profile auto|strict|spec] [--timeout S] [--retries K]
                         [--baseline FILE] [--resume DIR] [--max-memory SIZE]
+    softras conformance --merge DIR [DIR ...] --report OUT [--baseline FILE]
     softras verify SCENE IMAGE REFERENCE [--profile spec|strict|auto] [--capabilities F]
                    [--json] [--out-dir DIR]
     softras info [--json]
@@ -572,6 +573,8 @@ def cmd_conformance(args: argparse.Namespace) -> int:
     from softras.verification import conformance, golden, runner
     from softras.scene import SceneError, load_scene
 
+    if args.merge is not None:
+        return _merge_reports(args)
     if args.jobs < 1:
         raise CLIError(f"-j {args.jobs}: need at least 1 process")
     if args.timeout < 0 or not args.timeout == args.timeout:
@@ -646,6 +649,34 @@ def cmd_conformance(args: argparse.Namespace) -> int:
             resume_hint=f"resume with: {again} (and the same options)")
     except runner.RunnerError as error:
         raise CLIError(_one_line(error)) from None
+
+
+def _merge_reports(args: argparse.Namespace) -> int:
+    """``softras conformance --merge DIR... --report OUT``: the shards' reports as one (no GL needed).
+
+    Exit as a run with the merged verdicts (and ``--baseline``); 2 when the
+    folders are not the complete shards of one run
+    (:mod:`softras.verification.merge`), with nothing written.
+    """
+    from softras.verification import merge, runner
+
+    given = [flag for flag, value, default in (
+        ("PATH", args.paths, []), ("-k", args.patterns, None), ("--shard", args.shard, None),
+        ("--resume", args.resume, None), ("-j", args.jobs, 1), ("--timeout", args.timeout, 300.0),
+        ("--retries", args.retries, 0), ("--max-memory", args.max_memory, None),
+        ("--profile", args.profile, "auto")) if value != default]
+    if given:
+        raise CLIError(f"--merge combines finished reports: it takes only --report and --baseline, not "
+                       f"{', '.join(given)}")
+    if args.report is None:
+        raise CLIError("--merge needs --report OUT, the folder of the merged report")
+    report = _check_output_dir(args.report)
+    try:
+        baseline = runner.load_baseline(args.baseline) if args.baseline is not None else None
+        merged = merge.merge(args.merge, report, baseline=baseline)
+    except (runner.RunnerError, merge.MergeError) as error:
+        raise CLIError(_one_line(error)) from None
+    return merge.print_merged(merged, sys.stdout)
 
 
 def _import_glref():
@@ -892,6 +923,10 @@ def build_parser() -> argparse.ArgumentParser:
     conformance.add_argument("--resume", default=None, metavar="DIR",
                              help="finish the interrupted run whose report is in DIR (same paths and options), "
                                   "without checking its finished scenes again")
+    conformance.add_argument("--merge", nargs="+", default=None, metavar="DIR",
+                             help="merge the reports of the shards of one run (--shard I/N, all N of them, "
+                                  "same GL) into the --report folder, pictures included; no scene is run "
+                                  "(exit as the merged verdicts)")
     conformance.add_argument("--max-memory", default=None, metavar="SIZE",
                              help="memory budget, e.g. 8G or 50%%: a scene whose estimated need (plus its "
                                   "worker's) is over it is NOT SUPPORTED, refused up front (default 50%% of "

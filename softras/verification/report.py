@@ -238,6 +238,12 @@ def index_html(results: list[SceneResult], meta: dict) -> str:
                f"jobs: {esc(str(meta.get('jobs')))}"]
     if meta.get("shard"):
         details.append(f"shard {esc(str(meta['shard']))}")
+    merged = meta.get("merged") or {}
+    if merged.get("reports"):
+        parts = [f"{esc(str(item.get('shard') or item.get('folder')))}: {item.get('scenes')} scenes, "
+                 f"{float(item.get('seconds') or 0):.1f} s" for item in merged["reports"]]
+        details.append(f"merged from {len(parts)} report{'s' if len(parts) != 1 else ''} ("
+                       + "; ".join(parts) + "; time: their sum)")
     if meta.get("patterns"):
         details.append("-k " + esc(" ".join(meta["patterns"])))
     if meta.get("date"):
