@@ -147,8 +147,8 @@ def test_random_lane_filtered_scenes_are_bit_identical(seed, samples):
     llvmpipe's fixed-point wraps (mirrored_repeat filters in float: the scalar path)."""
     scene = softras.load_scene(random_scene(200 + seed, vectorised=True))
     for name, tex in scene.textures.items():
-        params = k_texture.texture_tables(softras.pipeline.texture.prepare(tex), True)[0]
-        assert params[k_texture._T_VEC] == 1, name
+        sampler = k_texture.texture_tables(softras.pipeline.texture.prepare(tex), True)[0]
+        assert sampler.vectorised == 1, name
     assert_same(*both_paths(scene, samples=samples), f"random lane-filtered scene seed {200 + seed}")
 
 
@@ -228,13 +228,14 @@ def test_quad_lod_equals_choose_levels():
     d[:400] = specials[rng.integers(len(specials), size=(400, 4))]
     for mip, min_filter in ((0, "linear"), (1, "linear_mipmap_nearest"), (2, "linear_mipmap_linear")):
         width, height, n_levels = 64, 16, 7
+        sampler = k_texture.Sampler(min_filter=1, mag_filter=0, mip=mip, wrap_s=0, wrap_t=0, fixed8=1,
+                                    levels=n_levels, vectorised=0)
         with np.errstate(all="ignore"):
             du = d[:, :2] * np.float32([width, height])
             dv = d[:, 2:] * np.float32([width, height])
             choice = texture.choose_levels(texture.rho_squared(du, dv), min_filter, n_levels, gl=True)
         for i in range(len(d)):
-            level0, level1, frac, image_filter, two = k_texture._quad_lod(width, height, mip, n_levels - 1, 0, 1,
-                                                                         *d[i])
+            level0, level1, frac, image_filter, two = k_texture._quad_lod(sampler, width, height, *d[i])
             magnified = bool(choice.magnified[i])
             assert image_filter == (0 if magnified else 1), d[i]
             assert level0 == (0 if magnified else choice.level0[i]), (d[i], mip)
@@ -340,8 +341,8 @@ def test_texture_tables_are_cached_per_prepared_texture():
     scene = softras.load_scene(bench.floor_scene(32))
     tex = texture.prepare(scene.textures["checker"])
     assert k_texture.texture_tables(tex, True) is k_texture.texture_tables(tex, True)
-    params_float = k_texture.texture_tables(tex, False)[0]
-    assert params_float[k_texture._T_FIXED] == 0 and k_texture.texture_tables(tex, True)[0][k_texture._T_FIXED] == 1
+    assert k_texture.texture_tables(tex, False)[0].fixed8 == 0
+    assert k_texture.texture_tables(tex, True)[0].fixed8 == 1
 
 
 def test_scratch_nbytes_counts_the_reused_buffers():

@@ -43,9 +43,12 @@ per-draw constants outside of the per-pixel work).
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import threading
+from collections import namedtuple
+from pathlib import Path
 
 # numba's default OpenMP threading layer leaves its threads spinning after a
 # parallel region; on a loaded 2-core machine they steal the core that
@@ -59,15 +62,15 @@ import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
 from softras.kernels.interpolate import _lane_depths, _lane_weights, _lane_words
-from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LF_S, _LF_T, _LI_BASE, _LI_COV,
-                                   _LI_IMGF, _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO,
-                                   _LI_W8, _LI_Z, _NLF, LANES)
-from softras.kernels.ops import _depth_test_lane, _write_lanes, clear
-from softras.kernels.rasterize import BLOCK, TILE, _bin, _edge_range, _inside3
-from softras.kernels.setup import _I_A, _I_B, _I_INC, _I_VIS, _I_X0, _I_Y0, _NF, _NI, CULL_CODES, _setup
-from softras.kernels.texture import (_T_FIXED, _T_LEVELS, _T_MAG, _T_MIN, _T_MIP, _T_VEC, _T_WS, _T_WT,
-                                     _NT, FILTER_CODES, MIN_FILTERS, _lanes_bilinear_fixed, _quad_lod,
-                                     _sample_lane, texture_tables)
+from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE, _LI_COV, _LI_IMGF,
+                                   _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
+                                   _NLF, LANES, LaneBuffers)
+from softras.kernels.ops import Framebuffer, _depth_test_lane, _write_lanes, clear
+from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
+                                       _list_whole_block)
+from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
+from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_bilinear_fixed,
+                                     _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import ops, setup, texture, vertex
 from softras.pipeline.texture import WRAP_CODES
@@ -75,6 +78,17 @@ from softras.scene import Scene, ordered_draws
 
 # Sample counts the fast path renders (the positions are the pipeline's).
 FAST_SAMPLES = (1, 4)
+
+# A draw's sample positions: offsets (S, 2) int64 in raster units
+# (`softras.pipeline.setup.sample_offsets`, gl) and positions (S, 2) float64
+# within the pixel.
+Samples = namedtuple("Samples", ["offsets", "positions"])
+
+# A draw's per-fragment operations, as codes: depth function
+# (`softras.pipeline.ops.DEPTH_FUNCS`), whether passed depths are written
+# (depth_write and a depth test), blend mode (`softras.pipeline.ops.BLEND_MODES`),
+# and whether the fragment colour is the texel's own (`plain_colors`).
+DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain"])
 
 
 # ----------------------------------------------------------------------------- dispatch
@@ -139,10 +153,10 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     width, height = scene.width, scene.height
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
     clip_pos = vertex.to_clip(mesh.positions, mvp, "gl")
-    source, slot, fan_clip, fan_weights = clip_stage.triangle_list_gl(clip_pos, mesh.indices)
-    if len(source) == 0:
+    clipped = Clipped(mesh.indices, *clip_stage.triangle_list_gl(clip_pos, mesh.indices))
+    n = len(clipped.source)
+    if n == 0:
         return
-    n = len(source)
     n_threads = numba.get_num_threads()
     material = draw.material
     textured = material.texture is not None
@@ -150,30 +164,28 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     base = np.ascontiguousarray(vertex_colors * material.color)             # straight, per vertex
     uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured
            else np.zeros((0, 2)))
-    tri_f = _scratch.take("tri_f", (n, _NF), np.float64)
-    tri_i = _scratch.take("tri_i", (n, _NI), np.int64)
-    bbox = _scratch.take("bbox", (n, 4), np.int64)
-    colors = _scratch.take("colors", (n, 3, 4), np.float64)
-    uv = _scratch.take("uv", (n if textured else 1, 3, 2), np.float64)
-    _setup(clip_pos, mesh.indices, source, slot, fan_clip, fan_weights, width, height, CULL_CODES[draw.cull],
-           offsets, tri_f, tri_i, bbox, (base, colors, uvs, uv), n_threads, _scratch)
-    visible = np.flatnonzero(tri_i[:, _I_VIS])
+    tris = Triangles(_scratch.take("tri_f", (n, _NF), np.float64), _scratch.take("tri_i", (n, _NI), np.int64),
+                     _scratch.take("bbox", (n, 4), np.int64), _scratch.take("colors", (n, 3, 4), np.float64),
+                     _scratch.take("uv", (n if textured else 1, 3, 2), np.float64))
+    _setup(clip_pos, clipped, width, height, CULL_CODES[draw.cull], offsets, (base, uvs), tris, n_threads,
+           _scratch)
+    visible = np.flatnonzero(tris.i[:, _I_VIS])
     if len(visible) == 0:
         return
-    tex_params = np.zeros(_NT, np.int64)
-    levels_flat, level_table = np.zeros(4, np.uint8), np.zeros((1, 3), np.int64)
+    sampler, texels = NO_TEXTURE
     if textured:
-        tex = texture.prepare(scene.textures[material.texture])
-        tex_params, levels_flat, level_table = texture_tables(tex, texture_fixed_point)
+        sampler, texels = texture_tables(texture.prepare(scene.textures[material.texture]), texture_fixed_point)
     tiles_x = (width + TILE - 1) // TILE
     tiles_y = (height + TILE - 1) // TILE
-    bin_start, bin_tri = _bin(visible, bbox, tiles_x, tiles_y)
+    bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
+    depth_func = ops.DEPTH_FUNCS[draw.depth_test]
+    state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
+                      bool(textured and plain_colors(base)))
+    fb = Framebuffer(color.view(np.uint32).reshape(color.shape[:3]), depth)
     draw_tiles = _DRAW_TILES[len(offsets), textured]
-    draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                offsets, positions, color.view(np.uint32).reshape(color.shape[:3]), depth,
-                ops.DEPTH_FUNCS[draw.depth_test], bool(draw.depth_write), ops.BLEND_MODES[draw.blend],
-                textured and plain_colors(base),
-                tex_params, levels_flat, levels_flat.view(np.uint32), level_table, n_threads)
+    # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
+    draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
+               n_threads)
 
 
 def plain_colors(base: np.ndarray) -> bool:
@@ -231,81 +243,100 @@ def scratch_nbytes() -> int:
 # See `softras.kernels.lanes` for the lanes the tile kernel lists and shades.
 
 
-def _make_draw_tiles(n_samples: int, textured: bool):
+def _sources_stamp() -> str:
+    """SHA-256 of the sources of softras.kernels (every module of this folder).
+
+    numba's on-disk cache checks the source file of the function it compiled
+    and nothing else, but the tile driver inlines kernels of every module
+    here: an edit of texture.py alone would load a stale driver.  The stamp is
+    a closure variable of the driver, and numba keys a closure's cache on its
+    variables, so any edit of the kernels compiles the drivers again.  (The
+    kernels of softras.pipeline they inline, unorm8, blend_byte, wrap_index,
+    are not covered: scripts/mutate.py's comment on numba's cache.)"""
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
     the parallel tile driver compiled for one sample count (1 or 4,
     `FAST_SAMPLES`) and textured or not, as constants (closure variables are
     compile-time constants to numba, and part of its cache key): the compiler
     unrolls the per-sample and per-quad loops and drops the texture code from
-    untextured draws, and a scene compiles only the variants it uses."""
+    untextured draws, and a scene compiles only the variants it uses.
+    sources : `_sources_stamp`, in the cache key only."""
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
-    def draw_tiles(bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                   offsets, positions, color32, depth, depth_func, depth_write, blend, plain,
-                   tex_params, texels, texels32, table, n_threads):
-        """Rasterize, shade and apply every binned triangle, tiles in parallel.
-
-        color32 : the (H, W, S, 4) uint8 colour buffer seen as (H, W, S) RGBA8
-        words (R in the low byte), depth : (H, W, S) int32 (see the module
-        docstring), updated in place.
-        texels / texels32 : a texture's levels as bytes and as RGBA8 words.
+    def draw_tiles(bins, tris, samples, fb, state, sampler, tex, n_threads):
+        """`softras.pipeline.render._render_pass` for one triangle draw after its
+        set-up: rasterize, shade and apply every binned triangle (`Bins` of the
+        set-up `Triangles`) at the `Samples`, tiles in parallel, into the
+        `Framebuffer` fb with the `DrawState` and the texture's `Sampler` and
+        `Texels` tex.  The records but the sampler come as plain tuples
+        (`softras.kernels.setup.Clipped`) and are named again here.  (A
+        parallel loop takes its records apart into its arguments, one level
+        deep: a record may hold arrays or scalars, not records.)
         Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
         so a scene covering only part of the picture still keeps every thread busy).
         """
-        n_tiles = bin_start.shape[0] - 1
+        stamp = sources                 # noqa: F841  (a closure variable: the cache key, see above)
+        n_tiles = bins[0].shape[0] - 1
         for r in numba.prange(n_threads):
-            texel = np.empty((2, 4))             # float-weight filtering: the two levels' RGBA
-            lf = np.zeros((_NLF, 2 * LANES))                # lane rows (see above)
-            li = np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64)
-            lu = np.zeros((8, LANES), np.uint64)             # the 8 fetched texels, spread
-            edges = np.zeros((3, n_samples), np.int64)      # a row's edge functions per sample
-            # (Grouped in tuples: CPython 3.11 passes a call with over 30
-            # arguments as *args, which numba cannot inline.)
-            buffers = (texel, lf, li, lu, edges)
+            lanes = LaneBuffers(np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64),
+                                np.zeros((8, LANES), np.uint64), np.empty((2, 4)),
+                                np.zeros((3, n_samples), np.int64))
+            # (One statement each: a tuple of records, built and unpacked,
+            # trips numba's array analysis, see `softras.kernels.rasterize.Edges`.)
+            bins_r = Bins(*bins)
+            tris_r = Triangles(*tris)
+            samples_r = Samples(*samples)
+            fb_r = Framebuffer(*fb)
+            state_r = DrawState(*state)
+            tex_r = Texels(*tex)
             for tile in range(r, n_tiles, n_threads):
-                _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-                      offsets, positions, color32, depth, (depth_func, depth_write, blend, plain),
-                      (tex_params, texels, texels32, table), buffers, n_samples, textured)
+                _tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, lanes, n_samples, textured)
 
     return draw_tiles
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, colors, uv,
-          offsets, positions, color32, depth, state, tex, buffers, n_samples, textured):
+def _tile(tile, bins, tris, samples, fb, state, sampler, tex, lanes, n_samples, textured):
     """One 64x64 tile: its triangles in draw order; per triangle the 8x8 blocks
     of its bounding box inside the tile with the exact early-out / early-in
-    corner test of `softras.pipeline.rasterize`; then in lanes: the covered pixels of
-    an untextured triangle (`_flat_block`, from LANES of them and after its
-    last block), the covered quads of a textured one per block
-    (`_textured_block`).  The per-pixel arithmetic is `softras.pipeline.render`'s,
-    operation for operation.
+    corner test of `softras.pipeline.rasterize._raster_triangle`
+    (`softras.kernels.rasterize._block_test`); then in lanes: the covered
+    pixels of an untextured triangle (`_flat_block`, from LANES of them and
+    after its last block), the covered quads of a textured one per block
+    (`_textured_block`).  The per-pixel arithmetic is
+    `softras.pipeline.render._render_pass`'s, operation for operation.
 
-    state : (depth function, depth write, blend mode) codes and whether the
-    draw's colour is the texel's own (`plain_colors`); tex : (params,
-    texels as bytes, as RGBA8 words, level table); buffers : the thread's
-    scratch arrays (see `_make_draw_tiles`)."""
-    depth_func, depth_write, blend, plain = state
-    lf, li, edges = buffers[1], buffers[2], buffers[4]
+    Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the thread's
+    `LaneBuffers`."""
+    # Every array out of its record once per tile, here: numba counts a
+    # reference to an array each time it is taken out of a record or passed
+    # to a function (inlined or not), an atomic operation, and per triangle
+    # or block that showed: passing the records on to `_flat_block` made the
+    # 24k-triangle grid's tile kernel 4-6 % slower.
+    lf, li, rows = lanes.lf, lanes.li, lanes.rows
+    offsets, positions = samples.offsets, samples.positions
+    bin_start, bin_tri = bins.start, bins.tri
+    tri_f, tri_i, bbox, colors, uv = tris.f, tris.i, tris.bbox, tris.colors, tris.uv
+    color32, depth = fb.color32, fb.depth
+    height, width = depth.shape[0], depth.shape[1]
     full_mask = (1 << n_samples) - 1
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
-    write_z = depth_write and depth_func != 0
     step = 2 if textured else 1             # blocks start at even pixels when textured (whole quads)
-    tx0 = (tile % tiles_x) * TILE
-    ty0 = (tile // tiles_x) * TILE
+    tx0 = (tile % bins.tiles_x) * TILE
+    ty0 = (tile // bins.tiles_x) * TILE
     tx1 = min(tx0 + TILE, width) - 1
     ty1 = min(ty0 + TILE, height) - 1
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
-        a0, b0, ex0, ey0, k0 = (tri_i[t, _I_A], tri_i[t, _I_B], tri_i[t, _I_X0], tri_i[t, _I_Y0],
-                                1 - tri_i[t, _I_INC])
-        a1, b1, ex1, ey1, k1 = (tri_i[t, _I_A + 1], tri_i[t, _I_B + 1], tri_i[t, _I_X0 + 1],
-                                tri_i[t, _I_Y0 + 1], 1 - tri_i[t, _I_INC + 1])
-        a2, b2, ex2, ey2, k2 = (tri_i[t, _I_A + 2], tri_i[t, _I_B + 2], tri_i[t, _I_X0 + 2],
-                                tri_i[t, _I_Y0 + 2], 1 - tri_i[t, _I_INC + 2])
+        edges = _edges(tri_i, t)
         n_flat = 0                              # untextured lanes listed, shaded from LANES on
-        step0, step1, step2 = a0 * 256, a1 * 256, a2 * 256     # edge steps per pixel
         x_start = max(bbox[t, 0], tx0)
         x_end = min(bbox[t, 1], tx1)
         y_start = max(bbox[t, 2], ty0)
@@ -317,108 +348,45 @@ def _tile(tile, bin_start, bin_tri, tiles_x, width, height, tri_f, tri_i, bbox, 
                 bx = max(block_x, x_start)
                 bx1 = min(block_x + BLOCK - 1, x_end)
                 # The edge functions at the block's extreme sample positions.
-                x_lo = bx * 256 + min_ox
-                x_hi = bx1 * 256 + max_ox
-                y_lo = by * 256 + min_oy
-                y_hi = by1 * 256 + max_oy
-                e_min0, e_max0 = _edge_range(a0, b0, ex0, ey0, x_lo, x_hi, y_lo, y_hi)
-                e_min1, e_max1 = _edge_range(a1, b1, ex1, ey1, x_lo, x_hi, y_lo, y_hi)
-                e_min2, e_max2 = _edge_range(a2, b2, ex2, ey2, x_lo, x_hi, y_lo, y_hi)
-                if ((e_max0 - k0) | (e_max1 - k1) | (e_max2 - k2)) < 0:
-                    continue                            # the block is outside an edge
-                all_in = ((e_min0 - k0) | (e_min1 - k1) | (e_min2 - k2)) >= 0
+                outside, all_in = _block_test(edges, bx * 256 + min_ox, bx1 * 256 + max_ox,
+                                              by * 256 + min_oy, by1 * 256 + max_oy)
+                if outside:
+                    continue
                 if textured:
                     if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
-                        # A whole block inside the triangle: its 16 quads in
-                        # the order below, every sample covered, no tests.
-                        n = LANES
-                        for l in range(LANES):
-                            px = bx + ((l >> 2) & 3) * 2 + (l & 1)
-                            py = by + (l >> 4) * 2 + ((l >> 1) & 1)
-                            li[_LI_PX, l] = px
-                            li[_LI_PY, l] = py
-                            li[_LI_COV, l] = full_mask
-                            lf[_LF_CX, l] = px + 0.5
-                            lf[_LF_CY, l] = py + 0.5
+                        n = _list_whole_block(bx, by, full_mask, lf, li)
                     else:
-                        # List the block's quads with any covered sample as lanes.
-                        n = 0
-                        for qy in range(by & -2, by1 + 1, 2):
-                            for qx in range(bx & -2, bx1 + 1, 2):
-                                quad_mask = 0
-                                for k in range(4):
-                                    px = qx + (k & 1)
-                                    py = qy + (k >> 1)
-                                    mask = 0
-                                    if bx <= px <= bx1 and by <= py <= by1:
-                                        mask = full_mask
-                                        if not all_in:
-                                            mask = 0
-                                            for s in range(n_samples):
-                                                if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1],
-                                                            a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1,
-                                                            a2, b2, ex2, ey2, k2):
-                                                    mask |= 1 << s
-                                    li[_LI_PX, n + k] = px
-                                    li[_LI_PY, n + k] = py
-                                    li[_LI_COV, n + k] = mask
-                                    lf[_LF_CX, n + k] = px + 0.5
-                                    lf[_LF_CY, n + k] = py + 0.5
-                                    quad_mask |= mask
-                                if quad_mask:
-                                    n += 4
+                        n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples)
                     if n:
-                        _textured_block(n, t, tri_f, colors, uv, positions, depth, color32,
-                                        depth_func, write_z, blend, plain, tex, buffers, n_samples)
+                        _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_samples)
                     continue
-                # Untextured: the block's part of the box listed as lanes, the
-                # covered pixels kept without a branch (which pixels a small
-                # triangle covers is unpredictable); shaded once LANES are
-                # listed and after the triangle's last block.
-                n = n_flat
-                for py in range(by, by1 + 1):
-                    if not all_in:
-                        # The edge functions (`_inside3`) at the row's first
-                        # pixel, then stepped by a * 256 per pixel.
-                        for s in range(n_samples):
-                            sx = bx * 256 + offsets[s, 0]
-                            sy = py * 256 + offsets[s, 1]
-                            edges[0, s] = a0 * (sx - ex0) + b0 * (sy - ey0) - k0
-                            edges[1, s] = a1 * (sx - ex1) + b1 * (sy - ey1) - k1
-                            edges[2, s] = a2 * (sx - ex2) + b2 * (sy - ey2) - k2
-                    for i in range(bx1 - bx + 1):
-                        mask = full_mask
-                        if not all_in:
-                            mask = 0
-                            for s in range(n_samples):
-                                inside = ((edges[0, s] + step0 * i) | (edges[1, s] + step1 * i)
-                                          | (edges[2, s] + step2 * i)) >= 0
-                                mask |= np.int64(inside) << s
-                        li[_LI_PX, n] = bx + i
-                        li[_LI_PY, n] = py
-                        li[_LI_COV, n] = mask
-                        n += mask != 0
-                n_flat = n
+                # Untextured: shaded once LANES are listed and after the
+                # triangle's last block.
+                n_flat = _list_pixels(n_flat, bx, bx1, by, by1, all_in, edges, offsets, full_mask, rows, li,
+                                      n_samples)
                 if n_flat >= LANES:
-                    _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, depth_func,
-                                write_z, blend, buffers, n_samples)
+                    _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples)
                     n_flat = 0
         if n_flat:
-            _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z,
-                        blend, buffers, n_samples)
+            _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z, blend,
-                buffers, n_samples):
+def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples):
     """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
-    fragments (`softras.pipeline.fragment.shade_unlit` colours).
+    fragments (`softras.pipeline.fragment.shade_unlit` colours), as
+    `softras.pipeline.render._render_pass` does them.
     Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_tile` with pixel and coverage mask):
     depths (vectorised), the depth test keeping the lanes with a passed
     sample (scalar, without branches), perspective weights and colour bytes
-    (vectorised), the writes (scalar)."""
-    lf, li = buffers[1], buffers[2]
+    (vectorised), the writes (scalar).
+
+    The arrays one by one, not as `Triangles`, `Samples`, `Framebuffer` and
+    `LaneBuffers` records: this runs about once per small triangle, and the
+    records' arrays taken out here cost reference counts (see `_tile`);
+    state : the `DrawState` (scalars: free)."""
+    depth_func, write_z = state.depth_func, state.write_z
     _lane_depths(n, t, tri_f, positions, li, n_samples)
     kept = 0
     for l in range(n):
@@ -432,76 +400,40 @@ def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, 
         kept += p != 0
     _lane_weights(kept, t, tri_f, lf, uv, False)
     _lane_words(kept, t, colors, lf, li, False)
-    _write_lanes(kept, li, color32, blend, n_samples)
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
+    _write_lanes(kept, li, color32, state.blend, n_samples)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_func, write_z, blend,
-                    plain, tex, buffers, n_samples):
+def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_samples):
     """`softras.pipeline.texture.sample` and `softras.pipeline.ops.apply_fragments`
-    of a textured triangle's fragments.
-    Shade the n lanes (n / 4 quads, listed by `_tile` with pixel, centre and
-    coverage) of one textured triangle in one 8x8 block.
+    of a textured triangle's fragments, as `softras.pipeline.render._render_pass`
+    does them.  Shade the n lanes (n / 4 quads, listed by `_tile` with pixel,
+    centre and coverage) of one textured triangle in one 8x8 block.
 
     Per quad the top-left, top-right and bottom-left lanes give the texture
-    derivatives (`interpolate.quad_derivatives`) and the level of detail is
-    the quad's; every lane's own (s, t) is its pixel's.  Lanes outside the
-    triangle are the quad's helper pixels: computed, never written.  With
-    ``plain`` (`plain_colors`) at one sample the filtered texel's bytes are
-    the fragment's colour word."""
-    tex_params, texels, texels32, table = tex
-    texel, lf, li, lu = buffers[0], buffers[1], buffers[2], buffers[3]
-    wrap_s, wrap_t = tex_params[_T_WS], tex_params[_T_WT]
-    fixed8 = tex_params[_T_FIXED] != 0
-    vectorised = tex_params[_T_VEC] != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
-    _lane_weights(n, t, tri_f, lf, uv, True)               # weights and (s, t), vectorised
-    _lane_depths(n, t, tri_f, positions, li, n_samples)          # (vectorised)
-    # The level of detail of every quad (one loop over the quads, before the
-    # depth test), kept on the quad's first lane.
-    width0, height0, last = table[0, 1], table[0, 2], tex_params[_T_LEVELS] - 1
-    mip, mag_filter, min_filter = tex_params[_T_MIP], tex_params[_T_MAG], tex_params[_T_MIN]
-    any_two = False                               # a quad samples two levels
-    for q in range(n >> 2):
-        l = 4 * q
-        s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
-        level0, level1, frac, image_filter, two = _quad_lod(
-            width0, height0, mip, last, mag_filter, min_filter,
-            np.float32(lf[_LF_S, l + 1]) - s_tl, np.float32(lf[_LF_T, l + 1]) - t_tl,
-            np.float32(lf[_LF_S, l + 2]) - s_tl, np.float32(lf[_LF_T, l + 2]) - t_tl)
-        li[_LI_LEVEL, l] = level0
-        li[_LI_LEVEL + 1, l] = level1
-        li[_LI_IMGF, l] = image_filter
-        li[_LI_TWO, l] = two
-        lf[_LF_FRAC, l] = frac
-        any_two |= two
+    derivatives (`softras.pipeline.interpolate.quad_derivatives`) and the
+    level of detail is the quad's (`softras.kernels.texture._lanes_lod`);
+    every lane's own (s, t) is its pixel's.  Lanes outside the triangle are
+    the quad's helper pixels: computed, never written.  With ``state.plain``
+    (`plain_colors`) at one sample the filtered texel's bytes are the
+    fragment's colour word."""
+    texels, texels32, table = tex.bytes, tex.words, tex.levels
+    lf, li, lu, depth, texel = lanes.lf, lanes.li, lanes.lu, fb.depth, lanes.texel
+    depth_func, write_z = state.depth_func, state.write_z
+    vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
+    _lane_weights(n, t, tris.f, lf, tris.uv, True)               # weights and (s, t), vectorised
+    _lane_depths(n, t, tris.f, samples.positions, li, n_samples)       # (vectorised)
+    # The level of detail of every quad (before the depth test), kept on the
+    # quad's first lane; whether a quad samples two levels.
+    any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
     # Depth test (scalar); a quad without a passed sample samples level 0 alone.
     block_passed = 0
     block_two = False                             # a passed quad samples two levels
     for q in range(n >> 2):
         quad_passed = 0
         for l in range(4 * q, 4 * q + 4):
-            p = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func,
-                                 write_z, n_samples)
+            p = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
+                                 n_samples)
             li[_LI_PASS, l] = p
             quad_passed |= p
         block_passed |= quad_passed
@@ -510,7 +442,7 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
         image_filter, two, frac = li[_LI_IMGF, l], li[_LI_TWO, l] != 0, lf[_LF_FRAC, l]
         if not quad_passed:
             level0 = level1 = 0
-            image_filter = mag_filter
+            image_filter = sampler.mag_filter
             two = False
             frac = 0.0
         w8 = np.int64(np.floor(frac * 256)) if two else 0
@@ -537,26 +469,24 @@ def _textured_block(n, t, tri_f, colors, uv, positions, depth, color32, depth_fu
                 lf[_LF_FRAC, l] = frac
     if block_passed == 0:
         return
-    words = plain and n_samples == 1 and vectorised     # texels straight into _LI_WORD
+    words = state.plain and n_samples == 1 and vectorised     # texels straight into _LI_WORD
     if vectorised:
         if block_two:
-            _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, wrap_s, wrap_t)
+            _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
         else:
-            _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, wrap_s, wrap_t)
+            _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, sampler)
     else:
         for l in range(n):
             if li[_LI_PASS, l]:
-                _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8)
-    # The fragment colour as llvmpipe's bytes, blended and written (`ops.apply_fragments`).
+                _sample_lane(l, lf, li, texel, sampler, texels, texels32, table)
+    # The fragment colour as llvmpipe's bytes, blended and written
+    # (`softras.pipeline.ops.apply_fragments`).
     if not words:
-        _lane_words(n, t, colors, lf, li, True)
-    _write_lanes(n, li, color32, blend, n_samples)
-
-
-
-
+        _lane_words(n, t, tris.colors, lf, li, True)
+    _write_lanes(n, li, fb.color32, state.blend, n_samples)
 
 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`).
-_DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured)
+_SOURCES = _sources_stamp()
+_DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
                for n_samples in FAST_SAMPLES for textured in (False, True)}

@@ -6,7 +6,8 @@ Mirrors `softras.pipeline.interpolate` (`barycentric`, `perspective_weights`,
 as `softras.pipeline.ops.unorm8` converts it, operation for operation.
 
 The per-pixel helpers (`_weights_at`, `_shade_word`) take and return scalars
-only.  A numba function that receives an array increments and decrements its
+and records of scalars only (`Corners`, `RGBA`: numba passes them as values,
+and LLVM keeps their fields in registers).  A numba function that receives an array increments and decrements its
 reference count (an atomic operation) on every call, inlined or not; per
 pixel that costs more than the arithmetic, and with several threads the
 shared counters bounce between cores.  So the lane loops do every array
@@ -14,6 +15,8 @@ access.
 """
 
 from __future__ import annotations
+
+from collections import namedtuple
 
 import numba
 import numpy as np
@@ -24,11 +27,43 @@ from softras.kernels.setup import _F_DZDX, _F_DZDY, _F_W, _F_X, _F_Y, _F_Z
 from softras.pipeline.ops import unorm8
 
 
+# A set-up triangle's corners as the interpolation reads them: window x, y
+# and 1/w, each a tuple of the three corners' values (`_corners`).
+Corners = namedtuple("Corners", ["x", "y", "inv_w"])
+
+# Four colour channels: floats (a texel), or per channel a tuple of the three
+# corners' values (a triangle's corner colours, `_corner_colors`).
+RGBA = namedtuple("RGBA", ["r", "g", "b", "a"])
+
+
+@numba.njit(cache=True, inline="always")
+def _corners(tri_f, t):
+    """The `Corners` of set-up triangle t (its tri_f row): the window
+    coordinates and inv_w of `softras.pipeline.setup.setup_triangles`."""
+    return Corners((tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]),
+                   (tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]),
+                   (tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]))
+
+
+@numba.njit(cache=True, inline="always")
+def _corner_colors(colors, t):
+    """Set-up triangle t's corner colours (colors (T, 3, 4), the values of
+    `softras.pipeline.render.corner_values`) as an `RGBA` of corner triples."""
+    return RGBA((colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]),
+                (colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]),
+                (colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]),
+                (colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]))
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, px, py):
+def _weights_at(c, px, py):
     """`softras.pipeline.interpolate.barycentric` then
-    `softras.pipeline.interpolate.perspective_weights` at window point (px, py),
-    same operations in the same order: (w0, w1, w2) float64."""
+    `softras.pipeline.interpolate.perspective_weights` at window point (px, py)
+    of the triangle with `Corners` c, same operations in the same order:
+    (w0, w1, w2) float64."""
+    x0, x1, x2 = c.x
+    y0, y1, y2 = c.y
+    iw0, iw1, iw2 = c.inv_w
     e0 = (x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)
     e1 = (x0 - x2) * (py - y2) - (y0 - y2) * (px - x2)
     e2 = (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)
@@ -41,18 +76,25 @@ def _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, px, py):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _shade_word(w0, w1, w2, cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2, tr, tg, tb, ta):
+def _mix(w, v):
+    """`softras.pipeline.interpolate.interpolate` of one attribute: weights w
+    and corner values v (3-tuples), w0 v0 + w1 v1 + w2 v2 in this order."""
+    return w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _shade_word(w, colors, texel):
     """`softras.pipeline.fragment.shade_unlit` of the perspective colour
-    (`softras.pipeline.interpolate.interpolate`; premultiplied, times the
-    texel; texel 1 when untextured, which leaves every value as it is) as the
-    bytes llvmpipe converts the fragment colour to
-    (`softras.pipeline.ops.unorm8`), packed in one RGBA8 word
-    (R in the low byte)."""
-    alpha = w0 * ca0 + w1 * ca1 + w2 * ca2
-    r = (w0 * cr0 + w1 * cr1 + w2 * cr2) * alpha * tr
-    g = (w0 * cg0 + w1 * cg1 + w2 * cg2) * alpha * tg
-    b = (w0 * cb0 + w1 * cb1 + w2 * cb2) * alpha * tb
-    return unorm8(r) | (unorm8(g) << 8) | (unorm8(b) << 16) | (unorm8(alpha * ta) << 24)
+    (`_mix` of the corner colours ``colors``, an `RGBA` of corner triples,
+    under the weights w; premultiplied, times the `RGBA` texel; texel 1 when
+    untextured, which leaves every value as it is) as the bytes llvmpipe
+    converts the fragment colour to (`softras.pipeline.ops.unorm8`), packed in
+    one RGBA8 word (R in the low byte)."""
+    alpha = _mix(w, colors.a)
+    r = _mix(w, colors.r) * alpha * texel.r
+    g = _mix(w, colors.g) * alpha * texel.g
+    b = _mix(w, colors.b) * alpha * texel.b
+    return unorm8(r) | (unorm8(g) << 8) | (unorm8(b) << 16) | (unorm8(alpha * texel.a) << 24)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -62,42 +104,34 @@ def _lane_weights(n, t, tri_f, lf, uv, textured):
     (uv (T, 3, 2) at the corners) into the _LF_S / _LF_T rows (a vectorised
     loop): `softras.pipeline.interpolate.perspective_weights` and the st of
     `softras.pipeline.render.uv_at_fragments`."""
-    x0, x1, x2 = tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2]
-    y0, y1, y2 = tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2]
-    iw0, iw1, iw2 = tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2]
-    u0 = u1 = u2 = v0 = v1 = v2 = 0.0
+    corners = _corners(tri_f, t)
+    u = v = (0.0, 0.0, 0.0)
     if textured:                        # (an untextured draw's uv is a (1, 3, 2) placeholder)
-        u0, u1, u2 = uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]
-        v0, v1, v2 = uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1]
+        u = (uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0])
+        v = (uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1])
     for l in range(n):
-        w0, w1, w2 = _weights_at(x0, x1, x2, y0, y1, y2, iw0, iw1, iw2, lf[_LF_CX, l], lf[_LF_CY, l])
-        lf[_LF_W, l] = w0
-        lf[_LF_W + 1, l] = w1
-        lf[_LF_W + 2, l] = w2
+        w = _weights_at(corners, lf[_LF_CX, l], lf[_LF_CY, l])
+        lf[_LF_W, l] = w[0]
+        lf[_LF_W + 1, l] = w[1]
+        lf[_LF_W + 2, l] = w[2]
         if textured:
-            lf[_LF_S, l] = w0 * u0 + w1 * u1 + w2 * u2
-            lf[_LF_T, l] = w0 * v0 + w1 * v1 + w2 * v2
+            lf[_LF_S, l] = _mix(w, u)
+            lf[_LF_T, l] = _mix(w, v)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _lane_words(n, t, colors, lf, li, textured):
     """The fragment colour of the n lanes as llvmpipe's bytes
     (`softras.pipeline.fragment.shade_unlit` then `softras.pipeline.ops.unorm8`,
-    `_shade_word`:
-    triangle t's corner colours under the _LF_W weights, times the _LF_TEX
-    texel when textured), one RGBA8 word each into the _LI_WORD row (a
-    vectorised loop)."""
-    cr0, cr1, cr2 = colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]
-    cg0, cg1, cg2 = colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]
-    cb0, cb1, cb2 = colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]
-    ca0, ca1, ca2 = colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]
+    `_shade_word`: triangle t's corner colours under the _LF_W weights, times
+    the _LF_TEX texel when textured), one RGBA8 word each into the _LI_WORD
+    row (a vectorised loop)."""
+    corner_colors = _corner_colors(colors, t)
     for l in range(n):
-        tr = lf[_LF_TEX, l] if textured else 1.0
-        tg = lf[_LF_TEX + 1, l] if textured else 1.0
-        tb = lf[_LF_TEX + 2, l] if textured else 1.0
-        ta = lf[_LF_TEX + 3, l] if textured else 1.0
-        li[_LI_WORD, l] = _shade_word(lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l],
-                                      cr0, cr1, cr2, cg0, cg1, cg2, cb0, cb1, cb2, ca0, ca1, ca2, tr, tg, tb, ta)
+        texel = RGBA(1.0, 1.0, 1.0, 1.0)
+        if textured:
+            texel = RGBA(lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l])
+        li[_LI_WORD, l] = _shade_word((lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l]), corner_colors, texel)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

@@ -13,6 +13,8 @@ depth test compares integers, and no division turns k back into a float
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numba
 import numpy as np
 
@@ -22,6 +24,11 @@ from softras.pipeline import ops as ops_stage
 from softras.pipeline.ops import blend_byte
 
 DEPTH_SCALE = float((1 << ops_stage.DEPTH_BITS) - 1)
+
+# The framebuffer the kernels update in place (see the module docstring):
+# color32 the (H, W, S, 4) uint8 colour buffer seen as (H, W, S) RGBA8 words
+# (uint32, R in the low byte), depth (H, W, S) int32.
+Framebuffer = namedtuple("Framebuffer", ["color32", "depth"])
 
 
 
@@ -39,8 +46,9 @@ def clear(color, depth, clear_bytes):
 @numba.njit(cache=True, inline="always")
 def _depth_test_lane(mask, li, l, depth, py, px, depth_func, write_z, n_samples):
     """`softras.pipeline.ops.apply_fragments`'s depth test (and depth write) of
-    lane l's samples in ``mask`` against the integer depth buffer, writing the passed depths when write_z; returns the mask of
-    passed samples.  No branches on the outcome."""
+    lane l's samples in ``mask`` against the integer depth buffer, writing
+    the passed depths when write_z; returns the mask of passed samples.  No
+    branches on the outcome."""
     p = 0
     for s in range(n_samples):
         k = li[_LI_Z + s, l]

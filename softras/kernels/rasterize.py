@@ -15,11 +15,34 @@ so a tile's pixels see their triangles in the pipeline's fragment order.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numba
 import numpy as np
 
+from softras.kernels.lanes import _LF_CX, _LF_CY, _LI_COV, _LI_PX, _LI_PY, LANES
+from softras.kernels.setup import _I_A, _I_B, _I_INC, _I_X0, _I_Y0
+
 TILE = 64          # pixels per tile side (binning and the parallel unit)
 BLOCK = 8          # pixels per block side (hierarchical coverage test)
+
+# One integer edge function of `softras.pipeline.setup.edge_equations`,
+# E(x, y) = a (x - x0) + b (y - y0) in raster units (1/256 pixel), and its
+# fill rule as a bias: 0 for an inclusive edge (inside: E >= 0), 1 for an
+# exclusive one (inside: E > 0, that is E - 1 >= 0).  Records of scalars
+# cost nothing in the compiled code (numba passes them as values; no
+# reference counts).
+Edge = namedtuple("Edge", ["a", "b", "x0", "y0", "bias"])
+
+# A triangle's three `Edge`s (`_edges`).  A record, read by attribute: a
+# plain tuple of records, unpacked, trips numba's array analysis in the
+# parallel tile driver (it takes a tuple of integer tuples for an array
+# shape: "Dimension mismatch").
+Edges = namedtuple("Edges", ["e0", "e1", "e2"])
+
+# A draw's binned triangles (`_bin`): tile k's at tri[start[k]:start[k + 1]],
+# tiles_x tiles per row.
+Bins = namedtuple("Bins", ["start", "tri", "tiles_x"])
 
 
 @numba.njit(cache=True)
@@ -48,21 +71,145 @@ def _bin(visible, bbox, tiles_x, tiles_y):
 
 
 @numba.njit(cache=True, inline="always")
-def _inside3(sx, sy, a0, b0, ex0, ey0, k0, a1, b1, ex1, ey1, k1, a2, b2, ex2, ey2, k2):
-    """Whether sample (sx, sy) (1/256 px) is inside all three integer edge
-    functions of `softras.pipeline.rasterize._raster_triangle` (k = 1 for an exclusive edge: e > 0,
-    k = 0 for an inclusive one: e >= 0)."""
-    return ((a0 * (sx - ex0) + b0 * (sy - ey0) - k0) | (a1 * (sx - ex1) + b1 * (sy - ey1) - k1)
-            | (a2 * (sx - ex2) + b2 * (sy - ey2) - k2)) >= 0
+def _edges(tri_i, t):
+    """Set-up triangle t's `Edges` (its tri_i row, `softras.kernels.setup`):
+    `softras.pipeline.setup.setup_triangles`' edge_a, edge_b, edge_x0,
+    edge_y0 and edge_inclusive."""
+    return Edges(Edge(tri_i[t, _I_A], tri_i[t, _I_B], tri_i[t, _I_X0], tri_i[t, _I_Y0], 1 - tri_i[t, _I_INC]),
+                 Edge(tri_i[t, _I_A + 1], tri_i[t, _I_B + 1], tri_i[t, _I_X0 + 1], tri_i[t, _I_Y0 + 1],
+                      1 - tri_i[t, _I_INC + 1]),
+                 Edge(tri_i[t, _I_A + 2], tri_i[t, _I_B + 2], tri_i[t, _I_X0 + 2], tri_i[t, _I_Y0 + 2],
+                      1 - tri_i[t, _I_INC + 2]))
 
 
 @numba.njit(cache=True, inline="always")
-def _edge_range(a, b, ex, ey, x_lo, x_hi, y_lo, y_hi):
-    """(min, max) of the integer edge function a (x - ex) + b (y - ey) over a
+def _edge_at(e, x, y):
+    """E(x, y) - bias of `Edge` e at raster point (x, y): >= 0 exactly where
+    `softras.pipeline.rasterize._inside` of `softras.pipeline.rasterize._edge`
+    holds."""
+    return e.a * (x - e.x0) + e.b * (y - e.y0) - e.bias
+
+
+@numba.njit(cache=True, inline="always")
+def _inside3(sx, sy, edges):
+    """Whether sample (sx, sy) (1/256 px) is inside all three `Edges` of
+    `softras.pipeline.rasterize._raster_triangle`'s per-sample test."""
+    return (_edge_at(edges.e0, sx, sy) | _edge_at(edges.e1, sx, sy) | _edge_at(edges.e2, sx, sy)) >= 0
+
+
+@numba.njit(cache=True, inline="always")
+def _edge_range(e, x_lo, x_hi, y_lo, y_hi):
+    """(min, max) of `Edge` e's function a (x - x0) + b (y - y0) over a
     rectangle's corners: the early-out / early-in values of
     `softras.pipeline.rasterize._raster_triangle`'s block test."""
-    e00 = a * (x_lo - ex) + b * (y_lo - ey)
-    e10 = a * (x_hi - ex) + b * (y_lo - ey)
-    e01 = a * (x_lo - ex) + b * (y_hi - ey)
-    e11 = a * (x_hi - ex) + b * (y_hi - ey)
+    e00 = e.a * (x_lo - e.x0) + e.b * (y_lo - e.y0)
+    e10 = e.a * (x_hi - e.x0) + e.b * (y_lo - e.y0)
+    e01 = e.a * (x_lo - e.x0) + e.b * (y_hi - e.y0)
+    e11 = e.a * (x_hi - e.x0) + e.b * (y_hi - e.y0)
     return min(min(e00, e10), min(e01, e11)), max(max(e00, e10), max(e01, e11))
+
+
+@numba.njit(cache=True, inline="always")
+def _block_test(edges, x_lo, x_hi, y_lo, y_hi):
+    """`softras.pipeline.rasterize._raster_triangle`'s exact block test for the
+    block whose extreme sample positions span x_lo..x_hi, y_lo..y_hi (raster
+    units): (outside, all_in): every sample is outside one edge (skip the
+    block), or every sample is inside all three (no per-sample tests)."""
+    e_min0, e_max0 = _edge_range(edges.e0, x_lo, x_hi, y_lo, y_hi)
+    e_min1, e_max1 = _edge_range(edges.e1, x_lo, x_hi, y_lo, y_hi)
+    e_min2, e_max2 = _edge_range(edges.e2, x_lo, x_hi, y_lo, y_hi)
+    outside = ((e_max0 - edges.e0.bias) | (e_max1 - edges.e1.bias) | (e_max2 - edges.e2.bias)) < 0
+    all_in = ((e_min0 - edges.e0.bias) | (e_min1 - edges.e1.bias) | (e_min2 - edges.e2.bias)) >= 0
+    return outside, all_in
+
+
+# ----------------------------------------------------------------------------- a block's lanes
+#
+# What `softras.pipeline.rasterize._raster_triangle` writes as fragments of
+# one block, listed as lanes (`softras.kernels.lanes`) instead: pixel and
+# coverage mask.  These take the lane arrays once per block (an array
+# argument costs a reference count per call), never per pixel.
+
+
+@numba.njit(cache=True, inline="always")
+def _list_whole_block(bx, by, full_mask, lf, li):
+    """The fragments of `softras.pipeline.rasterize._raster_triangle` for an
+    8x8 block inside all three edges, starting at pixel (bx, by) (even: whole
+    quads), as its 16 quads' lanes (4 lanes per quad, top-left, top-right,
+    bottom-left, bottom-right in llvmpipe's view), every sample covered, no
+    tests; the pixel centres too.  Returns LANES."""
+    for l in range(LANES):
+        px = bx + ((l >> 2) & 3) * 2 + (l & 1)
+        py = by + (l >> 4) * 2 + ((l >> 1) & 1)
+        li[_LI_PX, l] = px
+        li[_LI_PY, l] = py
+        li[_LI_COV, l] = full_mask
+        lf[_LF_CX, l] = px + 0.5
+        lf[_LF_CY, l] = py + 0.5
+    return LANES
+
+
+@numba.njit(cache=True, inline="always")
+def _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples):
+    """The fragments of `softras.pipeline.rasterize._raster_triangle` in pixels
+    bx..bx1 x by..by1 of one block, as the lanes of the 2x2 quads with a
+    covered sample (4 lanes per quad; a lane outside the block or uncovered
+    gets mask 0: a helper pixel); the pixel centres too.  all_in: the block
+    test found every sample inside.  Returns the number of lanes."""
+    n = 0
+    for qy in range(by & -2, by1 + 1, 2):
+        for qx in range(bx & -2, bx1 + 1, 2):
+            quad_mask = 0
+            for k in range(4):
+                px = qx + (k & 1)
+                py = qy + (k >> 1)
+                mask = 0
+                if bx <= px <= bx1 and by <= py <= by1:
+                    mask = full_mask
+                    if not all_in:
+                        mask = 0
+                        for s in range(n_samples):
+                            if _inside3(px * 256 + offsets[s, 0], py * 256 + offsets[s, 1], edges):
+                                mask |= 1 << s
+                li[_LI_PX, n + k] = px
+                li[_LI_PY, n + k] = py
+                li[_LI_COV, n + k] = mask
+                lf[_LF_CX, n + k] = px + 0.5
+                lf[_LF_CY, n + k] = py + 0.5
+                quad_mask |= mask
+            if quad_mask:
+                n += 4
+    return n
+
+
+@numba.njit(cache=True, inline="always")
+def _list_pixels(n, bx, bx1, by, by1, all_in, edges, offsets, full_mask, rows, li, n_samples):
+    """The fragments of `softras.pipeline.rasterize._raster_triangle` in pixels
+    bx..bx1 x by..by1 of one block, appended as lanes from lane n on: every
+    pixel of the block's part of the box is written, the covered ones kept
+    without a branch (which pixels a small triangle covers is unpredictable).
+    rows (3, S): scratch for a row's edge functions per sample, evaluated at
+    the row's first pixel (`_edge_at`) and stepped by a * 256 per pixel.
+    Returns the new number of lanes."""
+    step0, step1, step2 = edges.e0.a * 256, edges.e1.a * 256, edges.e2.a * 256     # edge steps per pixel
+    for py in range(by, by1 + 1):
+        if not all_in:
+            for s in range(n_samples):
+                sx = bx * 256 + offsets[s, 0]
+                sy = py * 256 + offsets[s, 1]
+                rows[0, s] = _edge_at(edges.e0, sx, sy)
+                rows[1, s] = _edge_at(edges.e1, sx, sy)
+                rows[2, s] = _edge_at(edges.e2, sx, sy)
+        for i in range(bx1 - bx + 1):
+            mask = full_mask
+            if not all_in:
+                mask = 0
+                for s in range(n_samples):
+                    inside = ((rows[0, s] + step0 * i) | (rows[1, s] + step1 * i)
+                              | (rows[2, s] + step2 * i)) >= 0
+                    mask |= np.int64(inside) << s
+            li[_LI_PX, n] = bx + i
+            li[_LI_PY, n] = py
+            li[_LI_COV, n] = mask
+            n += mask != 0
+    return n

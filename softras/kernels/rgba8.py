@@ -29,7 +29,8 @@ def _spread(texel):
 
 @numba.njit(cache=True, inline="always")
 def _unspread(x):
-    """The RGBA8 word (int64) of spread lanes x: `_spread` undone."""
+    """The RGBA8 word (int64) of spread lanes x: `_spread` undone (the bytes of
+    `softras.pipeline.ops.unorm8` packed as llvmpipe stores them)."""
     return np.int64((x | (x >> np.uint64(24))) & np.uint64(0xFFFFFFFF))
 
 

@@ -16,6 +16,8 @@ below), read by the later kernels (`softras.kernels.rasterize`,
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numba
 import numpy as np
 
@@ -32,37 +34,53 @@ SUBPIXEL_BITS = setup_stage.SUBPIXEL_BITS      # gl precision snaps to 1/256 pix
 SUBPIXEL_ONE = setup_stage.SUBPIXEL_ONE
 PARALLEL_SETUP = 4096      # triangles from which `_setup` runs in parallel chunks
 
+# A draw's clipped triangle list, as `softras.pipeline.clip.triangle_list_gl`
+# returns it (source, slot, fan_clip, fan_weights), with the mesh's vertex
+# indices (T, 3).
+#
+# Records of arrays cross into compiled code as plain tuples, tuple(record),
+# read by unpacking in the record's order: numba's dispatcher types a plain
+# tuple argument in C and a named one in Python, about 0.7 us more per
+# argument and call (measured: the tile driver's seven records cost 7 us a
+# draw as namedtuples).
+Clipped = namedtuple("Clipped", ["indices", "source", "slot", "fan_clip", "fan_weights"])
 
-def _setup(clip_pos, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets,
-           tri_f, tri_i, bbox, attributes, n_threads, scratch):
+# The set-up triangles, one row per clipped triangle: tables f (T, _NF)
+# float64 and i (T, _NI) int64 (layouts above), pixel box bbox (T, 4) int64
+# (x0, x1, y0, y1 inclusive), corner colours (T, 3, 4) and corner uvs (T, 3,
+# 2), or (1, 3, 2) unused when the draw is untextured.
+Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv"])
+
+
+def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, n_threads, scratch):
     """`softras.pipeline.setup.setup_triangles` (gl precision) of the clipped
     triangles (`_setup_range`): in one call, or in parallel chunks from
-    PARALLEL_SETUP triangles (read at call time).  scratch : the caller's
-    reused buffers (`softras.kernels.draw._Scratch`), for the per-vertex
-    tables."""
+    PARALLEL_SETUP triangles (read at call time).  clip_pos : the mesh's
+    vertices in clip space (V, 4); clipped : the `Clipped` list;
+    vertex_values : (vertex colours (V, 4), vertex uvs (V, 2) or (0, 2)
+    when untextured); tris : the `Triangles` to fill; scratch : the caller's reused buffers
+    (`softras.kernels.draw._Scratch`), for the per-vertex tables."""
     # The window corners of the input vertices, once per vertex (a vertex is
     # shared by ~6 triangles).
     vertex_f = scratch.take("vertex_f", (len(clip_pos), 4), np.float64)
     vertex_i = scratch.take("vertex_i", (len(clip_pos), 2), np.int64)
     _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
-    args = (vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height, cull, offsets,
-            tri_f, tri_i, bbox, attributes)
-    if len(source) < PARALLEL_SETUP:
-        _setup_range(0, len(source), *args)
+    args = ((vertex_f, vertex_i), tuple(clipped), width, height, cull, offsets, vertex_values, tuple(tris))
+    if len(clipped.source) < PARALLEL_SETUP:
+        _setup_range(0, len(clipped.source), *args)
     else:
         _setup_chunks(*args, 4 * n_threads)
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
-def _setup_chunks(vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height, cull,
-                  offsets, tri_f, tri_i, bbox, attributes, n_chunks):
+def _setup_chunks(window, clipped, width, height, cull, offsets, vertex_values, tris, n_chunks):
     """`softras.pipeline.setup.setup_triangles` (gl precision) as
     `_setup_range` over n_chunks parallel chunks of the triangles (one
     compiled loop body serves the serial and the parallel set-up)."""
-    n = source.shape[0]
+    n = clipped[1].shape[0]                 # (clipped: `Clipped` as a plain tuple; [1] the source)
     for chunk in numba.prange(n_chunks):
-        _setup_range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks, vertex_f, vertex_i, indices, source,
-                     slot, fan_clip, fan_weights, width, height, cull, offsets, tri_f, tri_i, bbox, attributes)
+        _setup_range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks, window, clipped, width, height, cull,
+                     offsets, vertex_values, tris)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -105,25 +123,24 @@ def _window_corner(x, y, z, w, fused, width, height):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _setup_range(start, stop, vertex_f, vertex_i, indices, source, slot, fan_clip, fan_weights, width, height,
-                 cull, offsets, tri_f, tri_i, bbox, attributes):
+def _setup_range(start, stop, window, clipped, width, height, cull, offsets, vertex_values, tris):
     """`softras.pipeline.setup.setup_triangles` (gl precision) and the depth plane of
     `softras.pipeline.interpolate.depth_at_samples`, for the clipped triangles start
-    to stop - 1 listed by `softras.pipeline.clip.triangle_list_gl` (source, slot,
-    fan_clip, fan_weights), the input vertices' window corners given
-    (`_window_vertices`).
+    to stop - 1 (clipped: the `Clipped` list as a plain tuple), the input vertices' window corners given
+    (window = (vertex_f, vertex_i) of `_window_vertices`).
 
-    Fills their rows of tri_f (T, 14) float64, tri_i (T, 17) int64 (layouts
-    at the top of this module), bbox (T, 4) int64 (x0, x1, y0, y1 inclusive)
-    and the corner attributes (`_corner_values`) of ``attributes`` = (vertex
-    colours (V, 4), corner colours (T, 3, 4), vertex uvs (V, 2) or (0, 2)
-    when untextured, corner uvs (T, 3, 2)); the triangles that the pipeline
-    drops (zero area, culled, empty box) have tri_i[:, _I_VIS] == 0 and their
-    other entries undefined.
+    Fills their rows of tris (the `Triangles` as a plain tuple): f, i, bbox, and the corner
+    attributes (`_corner_values`) of vertex_values = (vertex colours (V, 4),
+    vertex uvs (V, 2) or (0, 2) when untextured); the triangles that the
+    pipeline drops (zero area, culled, empty box) have tri_i[:, _I_VIS] == 0
+    and their other entries undefined.
     """
+    vertex_f, vertex_i = window
+    indices, source, slot, fan_clip, fan_weights = clipped
+    tri_f, tri_i, bbox, corner_colors, corner_uvs = tris
+    vertex_colors, vertex_uvs = vertex_values
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
-    vertex_colors, corner_colors, vertex_uvs, corner_uvs = attributes
     wx = np.empty(3)
     wy = np.empty(3)
     wz = np.empty(3)
@@ -195,19 +212,18 @@ def _setup_range(start, stop, vertex_f, vertex_i, indices, source, slot, fan_cli
         det = dx1 * dy2 - dx2 * dy1
         tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
         tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
-        _corner_values(vertex_colors, corner_colors, t, indices, source, slot, fan_weights,
-                       tri_i[t, _I_SWAP])
+        _corner_values(vertex_colors, corner_colors, t, clipped, tri_i[t, _I_SWAP])
         if vertex_uvs.shape[0]:
-            _corner_values(vertex_uvs, corner_uvs, t, indices, source, slot, fan_weights,
-                           tri_i[t, _I_SWAP])
+            _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP])
 
 
 @numba.njit(cache=True, inline="always")
-def _corner_values(values, out, t, indices, source, slot, fan_weights, swapped):
+def _corner_values(values, out, t, clipped, swapped):
     """`softras.pipeline.render.corner_values`: the attributes at set-up
     triangle t's corners, out[t] (3, K), from the vertex values (V, K), as its
     ``einsum("tkj,tjc->tkc", w, values[vertices])`` with the clip weights (identity for a passed-through
     triangle) in set-up corner order and the same sum order."""
+    indices, source, slot, _, fan_weights = clipped
     i0, i1, i2 = indices[source[t], 0], indices[source[t], 1], indices[source[t], 2]
     f = slot[t]
     for k in range(3):

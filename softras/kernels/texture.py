@@ -16,6 +16,8 @@ texels as one flat buffer and a level table.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numba
 import numpy as np
 
@@ -28,19 +30,35 @@ from softras.scene.texels import levels_buffer
 
 FILTER_CODES = {"nearest": 0, "linear": 1}
 MIN_FILTERS = ("nearest", "linear") + texture_stage.MIPMAP_FILTERS
-# Texture parameter vector (int64): enabled, min image filter, mag filter,
-# mip mode (0 none, 1 nearest, 2 linear), wrap s, wrap t, fixed8, levels,
-# whether the vectorised filter applies (`_lanes_bilinear_fixed`).
-_T_ON, _T_MIN, _T_MAG, _T_MIP, _T_WS, _T_WT, _T_FIXED, _T_LEVELS, _T_VEC, _NT = range(10)
+
+# A texture's sampler state as the kernels read it, every field an int:
+# the image filters for minification and magnification (FILTER_CODES), the
+# mip mode (0 none, 1 nearest, 2 linear), the wraps of s and t (WRAP_CODES),
+# fixed8 (1: llvmpipe's 8.8 fixed-point weights,
+# `softras.pipeline.texture.uses_fixed_point`), the number of levels used,
+# and whether the vectorised filter applies (`_lanes_bilinear_fixed`).
+Sampler = namedtuple("Sampler", ["min_filter", "mag_filter", "mip", "wrap_s", "wrap_t", "fixed8", "levels",
+                                 "vectorised"])
+
+# A prepared texture's texels as the kernels read them (`texture_tables`): the
+# used mip levels as one flat buffer of bytes (N,) uint8, the same buffer as
+# RGBA8 words (N / 4,) uint32, and the level table (L, 3) int64: byte offset,
+# width, height per level.  (Kept apart from the `Sampler`: numba's parallel
+# loops take a record of arrays or of scalars as an argument, not a record
+# holding a record.)
+Texels = namedtuple("Texels", ["bytes", "words", "levels"])
+
+# What an untextured draw passes (the same types: one compiled kernel).
+NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0),
+              Texels(np.zeros(4, np.uint8), np.zeros(1, np.uint32), np.zeros((1, 3), np.int64)))
 
 
 _tables_cache: dict = {}
 
 
 def texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
-    """A prepared texture as the kernel's (params (_NT,) int64, texels (N,) uint8,
-    levels (L, 3) int64 offset / width / height) tables; cached per prepared
-    texture (`softras.pipeline.texture.prepare` returns the same object for a scene texture)."""
+    """A prepared texture as the kernels read it, (`Sampler`, `Texels`); cached
+    per prepared texture (`softras.pipeline.texture.prepare` returns the same object for a scene texture)."""
     key = (id(tex), bool(fixed_point))
     hit = _tables_cache.get(key)
     if hit is not None and hit[0] is tex:
@@ -72,9 +90,9 @@ def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
     vectorised = (fixed8 and min_filter == mag_filter == FILTER_CODES["linear"]
                   and all(mode == "clamp_to_edge" or (size & (size - 1)) == 0
                           for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))))
-    params = np.array([1, min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t],
-                       int(fixed8), len(levels), int(vectorised)], np.int64)
-    return params, flat, table
+    sampler = Sampler(min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t], int(fixed8),
+                      len(levels), int(vectorised))
+    return sampler, Texels(flat, flat.view(np.uint32), table)
 
 
 # ----------------------------------------------------------------------------- addresses and filters
@@ -191,14 +209,16 @@ def _frexp32(x):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, ddy_s, ddy_t):
+def _quad_lod(sampler, width0, height0, ddx_s, ddx_t, ddy_s, ddy_t):
     """The level choice of `softras.pipeline.texture.sample` (gl precision:
     `softras.pipeline.texture.rho_squared` and `softras.pipeline.texture.choose_levels`)
-    for one quad's derivatives (float32 values): (level0, level1, frac, image
+    for one quad's derivatives (float32 values) on a texture whose level 0 is
+    width0 x height0 (`Sampler` sampler): (level0, level1, frac, image
     filter, whether to blend two levels).  Written with selects, no branches
     to mispredict and no call to frexp; lod = +-inf or NaN picks levels as the
     float -> int64 conversion of numpy and llvmpipe does (the "integer
     indefinite", negative)."""
+    mip, last, mag_filter, min_filter = sampler.mip, sampler.levels - 1, sampler.mag_filter, sampler.min_filter
     w32 = np.float32(width0)
     h32 = np.float32(height0)
     du0 = np.float32(ddx_s) * w32
@@ -232,11 +252,36 @@ def _quad_lod(width0, height0, mip, last, mag_filter, min_filter, ddx_s, ddx_t, 
     return level0, level1, frac, image_filter, two
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lanes_lod(n, sampler, width0, height0, lf, li):
+    """`_quad_lod` of each of the n / 4 quads listed in the lanes (top-left,
+    top-right, bottom-left lanes give the derivatives of (s, t),
+    `softras.pipeline.interpolate.quad_derivatives` rounded to float32), kept
+    on the quad's first lane: levels, image filter, whether it blends two
+    levels (_LI_LEVEL, _LI_IMGF, _LI_TWO) and the blend fraction (_LF_FRAC).
+    Returns whether any quad blends two levels."""
+    any_two = False
+    for q in range(n >> 2):
+        l = 4 * q
+        s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
+        level0, level1, frac, image_filter, two = _quad_lod(
+            sampler, width0, height0,
+            np.float32(lf[_LF_S, l + 1]) - s_tl, np.float32(lf[_LF_T, l + 1]) - t_tl,
+            np.float32(lf[_LF_S, l + 2]) - s_tl, np.float32(lf[_LF_T, l + 2]) - t_tl)
+        li[_LI_LEVEL, l] = level0
+        li[_LI_LEVEL + 1, l] = level1
+        li[_LI_IMGF, l] = image_filter
+        li[_LI_TWO, l] = two
+        lf[_LF_FRAC, l] = frac
+        any_two |= two
+    return any_two
+
+
 # ----------------------------------------------------------------------------- the lanes
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, wrap_s, wrap_t):
+def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, sampler):
     """`softras.pipeline.texture.sample` (gl, fixed8, linear image filter, power-of-two or
     clamped wraps) of every lane on its first level or (n_levels 2) its two
     levels (the same level twice with mip weight 0 where the quad uses one):
@@ -244,6 +289,7 @@ def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, wrap_s, wrap
     fetches (scalar), the lane lerps (vectorised).  Writes the texel as k/255
     floats into the _LF_TEX rows, or with ``words`` as its RGBA8 word into
     the _LI_WORD row."""
+    wrap_s, wrap_t = sampler.wrap_s, sampler.wrap_t
     for lv in range(n_levels):
         for l in range(n):
             lw, lh = li[_LI_LW + lv, l], li[_LI_LH + lv, l]
@@ -286,9 +332,13 @@ def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, wrap_s, wrap
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _sample_lane(l, lf, li, texels, texels32, table, texel, wrap_s, wrap_t, fixed8):
+def _sample_lane(l, lf, li, texel, sampler, texels, texels32, table):
     """`softras.pipeline.texture.sample` (gl precision) of lane l on its quad's level(s), any
-    filter and wrap (the scalar path beside `_lanes_bilinear_fixed`)."""
+    filter and wrap (the scalar path beside `_lanes_bilinear_fixed`); sampler :
+    the texture's `Sampler`; texels, texels32, table : its `Texels` (arrays
+    passed one by one: taken out of the record per lane, they would cost
+    reference counts per lane); texel : (2, 4) float64 scratch."""
+    wrap_s, wrap_t, fixed8 = sampler.wrap_s, sampler.wrap_t, sampler.fixed8 != 0
     s_px, t_px = lf[_LF_S, l], lf[_LF_T, l]
     image_filter = li[_LI_IMGF, l]
     two = li[_LI_TWO, l] != 0
