@@ -8,6 +8,8 @@
   gluLookAt, node transforms);
 - `meshes`: procedural meshes (grid, sphere, fan) and vertex tangents;
 - `meshfiles`: mesh files (PLY, OBJ, NPZ, glTF/GLB) for ``"mesh": {"file": ...}``;
+- `gltf`: a glTF file (.gltf / .glb) as a whole scene (docs/gltf.md), on
+  `gltf_files` (the glTF container) and `fileio` (the file readers' checks);
 - `texels`: texture images, procedural textures, premultiplication and
   llvmpipe's mipmap generation;
 - `displace`: displacement mapping, applied to meshes when a scene is loaded;

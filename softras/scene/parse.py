@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from softras.scene import displace, meshes, meshfiles, texels
+from softras.scene import displace, gltf, meshes, meshfiles, texels
 from softras.scene.model import (BLEND_MODES, CULL_MODES, DEFAULT_TOLERANCE, DEPTH_FUNCTIONS, FORMAT_VERSION, FRAMEBUFFERS,
                                  FRONT_FACES,
                                  LIGHT_TYPES, MAG_FILTERS, MAX_NODE_DEPTH, MAX_PIXELS, MAX_SIDE, MAX_TEXELS,
@@ -829,9 +829,14 @@ def _read_json(path: str) -> Any:
         raise SceneError(path, "invalid JSON: nested too deeply") from None
 
 
+#: The files `load_scene` reads as scenes (and `scene_files` finds in folders).
+SCENE_SUFFIXES = (".json",) + gltf.SUFFIXES
+
+
 def scene_files(paths) -> list[str]:
     """The scene files named by command-line PATHs: a file as given, a folder's
-    ``*.json`` files sorted by name; each file once, in the order found.
+    ``*.json``, ``*.gltf`` and ``*.glb`` files sorted by name; each file once,
+    in the order found.
 
     Raises FileNotFoundError (one line) for a path that does not exist and
     ValueError when the paths hold no scene file at all.
@@ -839,7 +844,7 @@ def scene_files(paths) -> list[str]:
     found: dict[str, None] = {}
     for path in map(os.fspath, paths):
         if os.path.isdir(path):
-            names = sorted(name for name in os.listdir(path) if name.endswith(".json"))
+            names = sorted(name for name in os.listdir(path) if name.endswith(SCENE_SUFFIXES))
             found.update((os.path.join(path, name), None) for name in names
                          if os.path.isfile(os.path.join(path, name)))
         elif os.path.isfile(path):
@@ -852,7 +857,8 @@ def scene_files(paths) -> list[str]:
 
 
 def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
-    """Load and validate a scene: a JSON file path, a dict, or a Scene (returned as is).
+    """Load and validate a scene: a JSON file path, a glTF file path (``.gltf`` or
+    ``.glb``, `softras.scene.gltf`), a dict, or a Scene (returned as is).
 
     Raises :class:`SceneError` (one line, starting with the place) for any problem.
     """
@@ -862,6 +868,8 @@ def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
         return scene_from_dict(source)
     if isinstance(source, (str, os.PathLike)):
         path = os.fspath(source)
+        if path.lower().endswith(gltf.SUFFIXES):         # a glTF file is a whole scene (docs/gltf.md)
+            return gltf.load_gltf_scene(path)
         data = _read_json(path)
         if not isinstance(data, dict):
             raise SceneError(path, f"the top level must be a JSON object, got {_type_name(data)}")
