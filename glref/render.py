@@ -23,7 +23,10 @@ sampler state is set with glTexParameteri on the bound texture.  Lighting
 (flat / gouraud / phong Blinn-Phong in world space) uses lit.vert / lit.frag
 with lighting.glsl, and lit.geom.glsl for flat shading.  A Phong material's normal or bump map is a
 second sampler (unit 1) with the scene model's per-vertex tangents
-(``Mesh.tangents``) as the attribute ``in_tangent``; displaced meshes arrive already displaced in ``Draw.mesh``.  llvmpipe's sampling depends on
+(``Mesh.tangents``) as the attribute ``in_tangent``; displaced meshes arrive already displaced in ``Draw.mesh``.
+A material's ``alpha_cutoff`` is the ALPHA_TEST variant: the fragment shader
+discards a fragment whose final alpha is below ``u_alpha_cutoff``. The
+scene's ``front_face`` is glFrontFace.  llvmpipe's sampling depends on
 GALLIVM_PERF, read once per process and recorded by `glref.info()`.
 """
 
@@ -148,6 +151,10 @@ def _features(draw, n_lights: int) -> tuple[str, ...]:
         if mat.shading != "phong":
             raise NotImplementedError(f"glref: {draw.path}: normal and bump maps need phong shading")
         defines.append("NORMAL_MAP" if mat.normal_map is not None else "BUMP_MAP")
+    if getattr(mat, "alpha_cutoff", None) is not None:
+        if draw.mesh.primitive != "triangles":
+            raise NotImplementedError(f"glref: {draw.path}: alpha test on {draw.mesh.primitive}")
+        defines.append("ALPHA_TEST")
     return tuple(sorted(defines))
 
 
@@ -384,7 +391,10 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
         fbo.clear(float(bg[0] * bg[3]), float(bg[1] * bg[3]), float(bg[2] * bg[3]),
                   float(bg[3]), depth=1.0)
 
-        ctx.front_face = "ccw"
+        front_face = getattr(scene, "front_face", "ccw")
+        if front_face not in ("ccw", "cw"):
+            raise ValueError(f"glref: unknown front_face {front_face!r}")
+        ctx.front_face = front_face             # glFrontFace: which winding culling calls front
         ctx.line_width = 1.0
         ctx.multisample = True
         ctx.wireframe = False
@@ -399,6 +409,8 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
             # GLSL mat4 is column-major: upload the transpose's row-major bytes.
             prog["u_mvp"].write(np.ascontiguousarray(mvp.astype(np.float32).T).tobytes())
             prog["u_color"].value = tuple(float(c) for c in draw.material.color)
+            if "ALPHA_TEST" in defines:
+                prog["u_alpha_cutoff"].value = float(draw.material.alpha_cutoff)
 
             content = [(own(ctx.buffer(np.ascontiguousarray(mesh.positions, np.float32))),
                         "3f", "in_position")]

@@ -60,6 +60,10 @@ vec3 mapped_normal(vec3 N) {
 }
 #endif
 
+#ifdef ALPHA_TEST
+uniform float u_alpha_cutoff; // material alpha_cutoff: fragments with alpha below it are discarded
+#endif
+
 out vec4 f_color;
 
 void main() {
@@ -75,5 +79,10 @@ void main() {
     f_color = vec4(c.rgb * c.a, c.a);
 #ifdef HAS_TEXTURE
     f_color *= texture(u_texture, UV);
+#endif
+#ifdef ALPHA_TEST
+    // glTF MASK: alpha >= cutoff is opaque, below it the fragment is dropped
+    // (once per fragment, also with MSAA: every covered sample goes).
+    if (f_color.a < u_alpha_cutoff) discard;
 #endif
 }

@@ -35,8 +35,10 @@ The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes and depth as 24-bit integers (`softras.kernels.ops`).
 
 `unsupported(scene, ...)` says why a scene must take the general path (lines,
-lit shading, anisotropic textures, other sample counts or clipping
-policies...).  A draw pays only for what it uses: the texture stage runs only
+lit shading, anisotropic textures, alpha-tested materials, other sample
+counts or clipping policies...).  ``front_face="cw"`` is drawn here as the
+swapped cull mode (`softras.pipeline.setup.window_cull`).  A draw pays
+only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
 per-draw constants outside of the per-pixel work).
 """
@@ -115,6 +117,8 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
             return f"{draw.path}: {material.shading} shading"
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
+        if getattr(material, "alpha_cutoff", None) is not None:
+            return f"{draw.path}: alpha test (alpha_cutoff)"
         if material.texture is not None:
             tex = scene.textures[material.texture]
             if (tex.max_anisotropy > 1 or tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
@@ -167,8 +171,8 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     tris = Triangles(_scratch.take("tri_f", (n, _NF), np.float64), _scratch.take("tri_i", (n, _NI), np.int64),
                      _scratch.take("bbox", (n, 4), np.int64), _scratch.take("colors", (n, 3, 4), np.float64),
                      _scratch.take("uv", (n if textured else 1, 3, 2), np.float64))
-    _setup(clip_pos, clipped, width, height, CULL_CODES[draw.cull], offsets, (base, uvs), tris, n_threads,
-           _scratch)
+    cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
+    _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs), tris, n_threads, _scratch)
     visible = np.flatnonzero(tris.i[:, _I_VIS])
     if len(visible) == 0:
         return

@@ -29,6 +29,25 @@ def shade_unlit(vertex_color: np.ndarray, material_color: np.ndarray,
     return rgba
 
 
+def alpha_test(alpha: np.ndarray, cutoff: float, precision: str = "gl") -> np.ndarray:
+    """The alpha test of a material with ``alpha_cutoff`` (glTF's alphaMode
+    MASK): (F,) final fragment alphas (premultiplied colour's alpha: vertex x
+    material x texel, after lighting) -> (F,) bool, True where the fragment
+    is kept, ``alpha >= cutoff`` (glTF 2.0 section 3.9.4: alpha below the
+    cutoff is fully transparent).
+
+    GL does this in the fragment shader (``if (f_color.a < u_alpha_cutoff)
+    discard;``, glref's shaders), once per fragment -- also with MSAA, where
+    the shader runs once per pixel and a discard drops every covered sample
+    -- so the test acts on whole fragments, before the depth test and
+    blending.  In gl precision both sides are rounded to float32 first, as
+    the shader compares them.
+    """
+    if precision == "gl":
+        return ~(np.asarray(alpha).astype(np.float32) < np.float32(cutoff))
+    return ~(np.asarray(alpha, np.float64) < cutoff)
+
+
 def _normalize(v: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / np.linalg.norm(v, axis=-1, keepdims=True)

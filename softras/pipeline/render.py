@@ -283,8 +283,10 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         clip_pos = vertex.to_clip(mesh.positions, mvp, precision)
         vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
         if mesh.primitive == "lines":
-            if draw.material.texture is not None or draw.material.shading != "unlit":
-                raise NotImplementedError(f"{draw.path}: softras draws lines unlit and untextured only")
+            if (draw.material.texture is not None or draw.material.shading != "unlit"
+                    or draw.material.alpha_cutoff is not None):
+                raise NotImplementedError(f"{draw.path}: softras draws lines unlit, untextured, "
+                                          f"without alpha test only")
             lf = lines.line_fragments(clip_pos, mesh.indices, width, height, values=vertex_colors,
                                       precision=precision,
                                       sample_positions=positions, policy=policy)
@@ -299,7 +301,8 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
                                             policy=policy, width=width, height=height)
         tris = setup.setup_triangles(clipped.clip, width, height, precision=precision,
                                      cull=draw.cull, offsets=offsets, unit=unit,
-                                     generated=clipped.generated, tie_rule=tie_rule)
+                                     generated=clipped.generated, tie_rule=tie_rule,
+                                     front_face=scene.front_face)
         frags = rasterize.rasterize(tris, offsets, unit)
         if len(frags) == 0:
             continue
@@ -346,7 +349,11 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
                                                             centres, corner_uv)
                 texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
         rgba = fragment.shade_unlit(colors, np.ones(4), texel)
-        ops.apply_fragments(frags.x, frags.y, frags.mask, z, rgba, color, depth,
+        x, y, mask = frags.x, frags.y, frags.mask
+        if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
+            passed = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
+            x, y, mask, z, rgba = x[passed], y[passed], mask[passed], z[passed], rgba[passed]
+        ops.apply_fragments(x, y, mask, z, rgba, color, depth,
                             ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
                             ops.BLEND_MODES[draw.blend], quantize)
     return color

@@ -46,7 +46,8 @@ class TriangleSetup:
         ``E = A (X - X0) + B (Y - Y0)`` (see `edge_equations`).
     edge_inclusive : (T', 3) bool, fill rule per edge.
     bbox : (T', 4) int64 pixel bounds x0, x1, y0, y1 (inclusive, clamped).
-    front_facing : (T',) bool (counter-clockwise in window space).
+    front_facing : (T',) bool (counter-clockwise in window space, or clockwise
+        with ``front_face="cw"``).
     """
 
     triangle: np.ndarray
@@ -143,13 +144,33 @@ def edge_equations(xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, ...]:
 TIE_RULES = {"left_bottom": (1, 1), "right_bottom": (-1, 1), "left_top": (1, -1), "right_top": (-1, -1)}
 
 
+FRONT_FACES = ("ccw", "cw")
+
+
+def window_cull(cull: str, front_face: str = "ccw") -> str:
+    """The cull mode in counter-clockwise terms: ``cull`` ("none", "back",
+    "front") under glFrontFace ``front_face`` ("ccw" or "cw") culls the same
+    triangles as the returned mode under "ccw" (with "cw" front and back
+    swap).  For the kernels, which know only counter-clockwise fronts."""
+    if front_face not in FRONT_FACES:
+        raise ValueError(f"unknown front_face {front_face!r}")
+    if front_face == "cw" and cull != "none":
+        return "front" if cull == "back" else "back"
+    return cull
+
+
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str = "gl",
                     cull: str = "none", offsets: np.ndarray, unit: float,
-                    generated: np.ndarray | None = None, tie_rule: str = "left_bottom") -> TriangleSetup:
+                    generated: np.ndarray | None = None, tie_rule: str = "left_bottom",
+                    front_face: str = "ccw") -> TriangleSetup:
     """Set up clipped triangles for rasterization.
 
     clip : (T, 3, 4) float64 clip-space triangles (after the clip stage).
-    cull : "none", "back" or "front" (front = counter-clockwise).
+    cull : "none", "back" or "front".
+    front_face : "ccw" (GL's default) or "cw": the winding in window space
+        (y up) of front-facing triangles (glFrontFace, GL 4.6 section 14.6.1).
+        It decides only facing and culling: the corners are reordered
+        counter-clockwise for the edge functions either way.
     offsets, unit : from `sample_offsets`.
     generated : (T, 3) bool, vertices made by the clipper (see `viewport_transform`).
     tie_rule : one of `TIE_RULES`: the edges that own a sample exactly on them.
@@ -164,7 +185,10 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str
     x, y = raster[..., 0], raster[..., 1]
     # Twice the signed area, counter-clockwise positive (exact in int64 for gl).
     area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
-    front = area > 0
+    if front_face not in FRONT_FACES:
+        raise ValueError(f"unknown front_face {front_face!r}")
+    counter_clockwise = area > 0
+    front = counter_clockwise if front_face == "ccw" else area < 0
     keep = area != 0
     if cull == "back":
         keep &= front
@@ -175,7 +199,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str
 
     index = np.nonzero(keep)[0]
     corner = np.tile(np.arange(3), (len(index), 1))
-    clockwise = ~front[index]
+    clockwise = ~counter_clockwise[index]
     corner[clockwise] = [1, 0, 2]           # swap corners 0 and 1 -> counter-clockwise
     window = np.take_along_axis(window[index], corner[..., None], axis=1)
     inv_w = np.take_along_axis(inv_w[index], corner, axis=1)

@@ -8,6 +8,8 @@
   gluLookAt, node transforms);
 - `meshes`: procedural meshes (grid, sphere, fan) and vertex tangents;
 - `meshfiles`: mesh files (PLY, OBJ, NPZ, glTF/GLB) for ``"mesh": {"file": ...}``;
+- `gltf`: a glTF file (.gltf / .glb) as a whole scene (docs/gltf.md), on
+  `gltf_files` (the glTF container) and `fileio` (the file readers' checks);
 - `texels`: texture images, procedural textures, premultiplication and
   llvmpipe's mipmap generation;
 - `displace`: displacement mapping, applied to meshes when a scene is loaded;
@@ -18,7 +20,7 @@ on it.
 """
 
 from softras.scene.model import (BLEND_MODES, CULL_MODES, DEFAULT_TOLERANCE, DEPTH_FUNCTIONS, FORMAT_VERSION,
-                                 FRAMEBUFFERS, LIGHT_TYPES, MAG_FILTERS, MAX_NODE_DEPTH, MAX_PIXELS, MAX_SIDE,
+                                 FRAMEBUFFERS, FRONT_FACES, LIGHT_TYPES, MAG_FILTERS, MAX_NODE_DEPTH, MAX_PIXELS, MAX_SIDE,
                                  MAX_TEXELS, MIN_FILTERS, MIPMAP_FILTERS, PRIMITIVES, PROCEDURAL_TEXTURES,
                                  PROJECTIONS, RENDER_ORDERS, SHADINGS, WRAP_MODES, Camera, Displacement, Draw,
                                  Light, Material, Mesh, Scene, SceneError, Texture, ordered_draws)
@@ -27,7 +29,7 @@ from softras.scene.transforms import (cross3, frustum_matrix, look_at_matrix, or
                                       perspective_matrix, rotate_matrix, scale_matrix, translate_matrix)
 
 __all__ = ["BLEND_MODES", "CULL_MODES", "DEFAULT_TOLERANCE", "DEPTH_FUNCTIONS", "FORMAT_VERSION", "FRAMEBUFFERS",
-           "LIGHT_TYPES", "MAG_FILTERS", "MAX_NODE_DEPTH", "MAX_PIXELS", "MAX_SIDE", "MAX_TEXELS", "MIN_FILTERS",
+           "FRONT_FACES", "LIGHT_TYPES", "MAG_FILTERS", "MAX_NODE_DEPTH", "MAX_PIXELS", "MAX_SIDE", "MAX_TEXELS", "MIN_FILTERS",
            "MIPMAP_FILTERS", "PRIMITIVES", "PROCEDURAL_TEXTURES", "PROJECTIONS", "RENDER_ORDERS", "SHADINGS",
            "WRAP_MODES", "Camera", "Displacement", "Draw", "Light", "Material", "Mesh", "Scene", "SceneError",
            "Texture", "ordered_draws", "load_scene", "scene_files", "scene_from_dict", "cross3",

@@ -45,32 +45,33 @@ its internals raise; and its import alone takes longer than loading a
 exactly, with the conventions above stated and tested
 (tests/test_mesh_files.py).
 
-Why one module of ~900 lines: one reader per format, all sharing the checks,
-the polygon fan and the error form; each reader is a section below.
+Why one module of ~700 lines: one reader per format, all sharing the checks,
+the polygon fan and the error form; each reader is a section below (the
+glTF container itself is `softras.scene.gltf_files`, shared with the glTF
+scene reader `softras.scene.gltf`).
 """
 
 from __future__ import annotations
 
-import base64
-import json
 import math
 import os
 import struct
-import urllib.parse
 import zipfile
 import zlib
 
 import numpy as np
 
+from softras.scene import gltf_files
+from softras.scene.fileio import MAX_VERTICES  # noqa: F401  (the limit, documented here)
+from softras.scene.fileio import BadFile as _Bad
+from softras.scene.fileio import check_counts as _check_counts
+from softras.scene.fileio import read_bytes as _read_bytes
 from softras.scene.meshes import MeshArrays
 from softras.scene.model import MAX_NODE_DEPTH, Mesh, SceneError, _readonly
 
 SUFFIXES = (".ply", ".obj", ".npz", ".glb", ".gltf")
-MAX_VERTICES = 16 * 1024 * 1024    # vertices of one mesh file
 
 
-class _Bad(Exception):
-    """A problem with the file; the reader's message, without the place."""
 
 
 def read_mesh_file(path: str, name: str, place: str, max_triangles: int) -> Mesh:
@@ -87,7 +88,7 @@ def read_mesh_file(path: str, name: str, place: str, max_triangles: int) -> Mesh
         raise SceneError(place, f"{name}: is a folder, not a mesh file")
     try:
         arrays = _READERS[suffix](path, max_triangles)
-        return _checked(arrays, max_triangles)
+        return checked_mesh(arrays, max_triangles)
     except _Bad as error:
         raise SceneError(place, f"{name}: {error}") from None
     except PermissionError:
@@ -101,16 +102,7 @@ def read_mesh_file(path: str, name: str, place: str, max_triangles: int) -> Mesh
 # --------------------------------------------------------------------------- shared checks
 
 
-def _check_counts(vertices: int, triangles: int, max_triangles: int, what: str = "") -> None:
-    """Refuse sizes over the limits, from counts alone (before allocating)."""
-    if vertices > MAX_VERTICES:
-        raise _Bad(f"{what}{vertices} vertices, more than the limit {MAX_VERTICES} of a mesh file")
-    if triangles > max_triangles:
-        raise _Bad(f"{what}{triangles} triangles; the scene may have at most {max_triangles} more "
-                   f"(procedural and file meshes together)")
-
-
-def _checked(arrays: MeshArrays, max_triangles: int) -> Mesh:
+def checked_mesh(arrays: MeshArrays, max_triangles: int) -> Mesh:
     """The mesh with every value checked: finite numbers, colours in [0, 1],
     indices in range, at least one triangle."""
     positions, indices, colors, normals, uvs = arrays
@@ -187,11 +179,6 @@ def _fan(counts: np.ndarray, flat: np.ndarray, max_triangles: int) -> np.ndarray
     j = np.arange(total) - np.repeat(np.cumsum(per_face) - per_face, per_face) + 1
     base = starts[face]
     return np.stack([flat[base], flat[base + j], flat[base + j + 1]], axis=1)
-
-
-def _read_bytes(path: str) -> bytes:
-    with open(path, "rb") as file:
-        return file.read()
 
 
 # --------------------------------------------------------------------------- PLY
@@ -647,256 +634,84 @@ def _read_npz(path: str, max_triangles: int) -> MeshArrays:
 # --------------------------------------------------------------------------- glTF
 
 
-_GLTF_COMPONENTS = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
-_GLTF_TYPES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-_GLTF_MODES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP", 4: "TRIANGLES",
-               5: "TRIANGLE_STRIP", 6: "TRIANGLE_FAN"}
-
-
 def _read_gltf(path: str, max_triangles: int) -> MeshArrays:
-    raw = _read_bytes(path)
-    binary = None
-    if path.lower().endswith(".glb"):
-        document, binary = _glb_chunks(raw)
-    else:
-        document = raw
+    """The default scene's triangle primitives concatenated into one mesh (the
+    container is read by `softras.scene.gltf_files`)."""
     try:
-        gltf = json.loads(document.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as error:
-        raise _Bad(f"invalid glTF JSON: {error}") from None
-    if not isinstance(gltf, dict):
-        raise _Bad("invalid glTF JSON: the top level is not an object")
-    try:
-        return _Gltf(gltf, binary, os.path.dirname(path)).mesh(max_triangles)
+        return _gltf_mesh(gltf_files.GltfFile(path), max_triangles)
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as error:
         raise _Bad(f"malformed glTF ({type(error).__name__}: {error})") from None
 
 
-def _glb_chunks(raw: bytes) -> tuple[bytes, bytes | None]:
-    if len(raw) < 12 or raw[:4] != b"glTF":
-        raise _Bad("not a GLB file (no 'glTF' magic)")
-    version, length = struct.unpack_from("<II", raw, 4)
-    if version != 2:
-        raise _Bad(f"GLB version {version} (only version 2 is read)")
-    if length > len(raw):
-        raise _Bad(f"truncated: the GLB header says {length} bytes, the file has {len(raw)}")
-    chunks, offset = [], 12
-    while offset < length:
-        if offset + 8 > length:
-            raise _Bad("truncated: a GLB chunk header is cut off")
-        size, kind = struct.unpack_from("<II", raw, offset)
-        if offset + 8 + size > length:
-            raise _Bad(f"truncated: a GLB chunk of {size} bytes at byte {offset} runs past the end ({length} bytes)")
-        chunks.append((kind, raw[offset + 8:offset + 8 + size]))
-        offset += 8 + size
-    if not chunks or chunks[0][0] != 0x4E4F534A:
-        raise _Bad("the first GLB chunk is not JSON")
-    binary = chunks[1][1] if len(chunks) > 1 and chunks[1][0] == 0x004E4942 else None
-    return chunks[0][1], binary
+def _gltf_draws(file: gltf_files.GltfFile) -> list[tuple[int, np.ndarray]]:
+    """(mesh index, world matrix) for every mesh of the default scene."""
+    gltf = file.document
+    if not gltf.get("scenes"):
+        return [(m, np.identity(4)) for m in range(len(gltf.get("meshes", [])))]
+    scene = file.item("scenes", gltf.get("scene", 0), "scene")
+    found = []
+
+    def visit(index, parent, depth, where):
+        if depth > MAX_NODE_DEPTH:
+            raise _Bad(f"{where}: nodes nested more than {MAX_NODE_DEPTH} deep (or in a cycle)")
+        node = file.item("nodes", index, where)
+        world = parent @ gltf_files.node_matrix(node, f"nodes[{index}]")
+        if "mesh" in node:
+            file.item("meshes", node["mesh"], f"nodes[{index}]")
+            found.append((node["mesh"], world))
+        for child in node.get("children", []):
+            visit(child, world, depth + 1, f"nodes[{index}].children")
+
+    for root in scene.get("nodes", []):
+        visit(root, np.identity(4), 0, "scene")
+    return found
 
 
-class _Gltf:
-    def __init__(self, gltf: dict, binary: bytes | None, folder: str):
-        self.gltf, self.binary, self.folder = gltf, binary, folder
-        self.buffers: dict[int, bytes] = {}
-        required = gltf.get("extensionsRequired", [])
-        if required:
-            raise _Bad(f"needs glTF extension(s) {', '.join(map(str, required))}, not supported")
-
-    def item(self, table: str, index, where: str) -> dict:
-        items = self.gltf.get(table, [])
-        if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < len(items):
-            raise _Bad(f"{where}: {table} index {index!r} out of range ({len(items)} {table})")
-        return items[index]
-
-    def buffer(self, index: int, where: str) -> bytes:
-        if index not in self.buffers:
-            entry = self.item("buffers", index, where)
-            uri = entry.get("uri")
-            if uri is None:
-                if self.binary is None or index != 0:
-                    raise _Bad(f"buffers[{index}] has no uri and there is no GLB binary chunk")
-                data = self.binary
-            elif uri.startswith("data:"):
-                try:
-                    data = base64.b64decode(uri.split(",", 1)[1], validate=True)
-                except (IndexError, ValueError):
-                    raise _Bad(f"buffers[{index}]: malformed base64 data uri") from None
-            else:
-                file = os.path.join(self.folder, urllib.parse.unquote(uri))
-                if not os.path.isfile(file):
-                    raise _Bad(f"buffers[{index}]: no such file {uri!r}")
-                data = _read_bytes(file)
-            declared = entry["byteLength"]
-            if declared > len(data):
-                raise _Bad(f"truncated: buffers[{index}] has {len(data)} bytes, its byteLength says {declared}")
-            self.buffers[index] = data
-        return self.buffers[index]
-
-    def accessor_count(self, index: int, where: str) -> int:
-        return int(self.item("accessors", index, where)["count"])
-
-    def accessor(self, index: int, where: str) -> tuple[np.ndarray, np.dtype, bool]:
-        """(count, components) array as stored, its component type, normalized?"""
-        where = f"{where}: accessors[{index}]"
-        accessor = self.item("accessors", index, where)
-        if "sparse" in accessor:
-            raise _Bad(f"{where}: sparse accessors are not supported")
-        component = _GLTF_COMPONENTS.get(accessor["componentType"])
-        width = _GLTF_TYPES.get(accessor["type"])
-        if component is None or width is None:
-            raise _Bad(f"{where}: unsupported componentType {accessor['componentType']!r} "
-                       f"or type {accessor['type']!r}")
-        count = int(accessor["count"])
-        dtype = np.dtype(component).newbyteorder("<")
-        if count < 0:
-            raise _Bad(f"{where}: negative count {count}")
-        if "bufferView" not in accessor:
-            return np.zeros((count, width), dtype), dtype, bool(accessor.get("normalized", False))
-        view = self.item("bufferViews", accessor["bufferView"], where)
-        data = self.buffer(view["buffer"], where)
-        view_offset, view_length = int(view.get("byteOffset", 0)), int(view["byteLength"])
-        if view_offset < 0 or view_length < 0 or view_offset + view_length > len(data):
-            raise _Bad(f"truncated: bufferViews[{accessor['bufferView']}] (bytes {view_offset} to "
-                       f"{view_offset + view_length}) runs past the end of its buffer ({len(data)} bytes)")
-        element = width * dtype.itemsize
-        stride = int(view.get("byteStride", element))
-        offset = int(accessor.get("byteOffset", 0))
-        if stride < element or offset < 0:
-            raise _Bad(f"{where}: byteStride {stride} is smaller than an element ({element} bytes)")
-        if count and offset + stride * (count - 1) + element > view_length:
-            raise _Bad(f"truncated: {where} needs {offset + stride * (count - 1) + element} bytes, its "
-                       f"bufferView has {view_length}")
-        array = np.ndarray((count, width), dtype, buffer=data, offset=view_offset + offset,
-                           strides=(stride, dtype.itemsize))
-        return array.copy(), dtype, bool(accessor.get("normalized", False))
-
-    def floats(self, index: int, where: str, widths: tuple[int, ...], what: str) -> np.ndarray:
-        array, dtype, normalized = self.accessor(index, where)
-        if array.shape[1] not in widths:
-            raise _Bad(f"{where}: {what} has {array.shape[1]} components, expected {' or '.join(map(str, widths))}")
-        if dtype.kind == "f":
-            return array.astype(np.float64)
-        if normalized and dtype.kind == "u":
-            return array / float(np.iinfo(dtype).max)
-        raise _Bad(f"{where}: {what} of type {dtype.name}{' (normalized)' if normalized else ''} is not supported "
-                   f"(floats, or normalized unsigned integers)")
-
-    def draws(self) -> list[tuple[int, np.ndarray]]:
-        """(mesh index, world matrix) for every mesh of the default scene."""
-        gltf = self.gltf
-        if not gltf.get("scenes"):
-            return [(m, np.identity(4)) for m in range(len(gltf.get("meshes", [])))]
-        scene = self.item("scenes", gltf.get("scene", 0), "scene")
-        found = []
-
-        def visit(index, parent, depth, where):
-            if depth > MAX_NODE_DEPTH:
-                raise _Bad(f"{where}: nodes nested more than {MAX_NODE_DEPTH} deep (or in a cycle)")
-            node = self.item("nodes", index, where)
-            world = parent @ _node_matrix(node)
-            if "mesh" in node:
-                self.item("meshes", node["mesh"], f"nodes[{index}]")
-                found.append((node["mesh"], world))
-            for child in node.get("children", []):
-                visit(child, world, depth + 1, f"nodes[{index}].children")
-
-        for root in scene.get("nodes", []):
-            visit(root, np.identity(4), 0, "scene")
-        return found
-
-    def mesh(self, max_triangles: int) -> MeshArrays:
-        draws = self.draws()
-        primitives = [(m, p, world) for m, world in draws
-                      for p in range(len(self.item("meshes", m, "nodes").get("primitives", [])))]
-        vertices = triangles = 0
-        for m, p, _ in primitives:                 # sizes first, from the accessors' counts
-            where = f"meshes[{m}].primitives[{p}]"
-            primitive = self.gltf["meshes"][m]["primitives"][p]
-            mode = primitive.get("mode", 4)
-            if mode != 4:
-                raise _Bad(f"{where}: mode {mode} ({_GLTF_MODES.get(mode, 'unknown')}) is not supported "
-                           f"(only TRIANGLES)")
-            if "POSITION" not in primitive.get("attributes", {}):
-                raise _Bad(f"{where}: no POSITION attribute")
-            count = self.accessor_count(primitive["attributes"]["POSITION"], where)
-            vertices += count
-            triangles += (self.accessor_count(primitive["indices"], where) if "indices" in primitive else count) // 3
-            _check_counts(vertices, triangles, max_triangles)
-        parts = [self.primitive(m, p, world) for m, p, world in primitives]
-        if not parts:
-            raise _Bad("no mesh primitives (no triangles)")
-        for key, what in ((3, "normals (NORMAL)"), (4, "uvs (TEXCOORD_0)")):
-            has = [part[key] is not None for part in parts]
-            if any(has) and not all(has):
-                missing, present = has.index(False), has.index(True)
-                raise _Bad(f"primitive {present} has {what} and primitive {missing} has not "
-                           f"(counting the primitives drawn, in order)")
-        offsets = np.cumsum([0] + [len(part[0]) for part in parts])
-        positions = np.concatenate([part[0] for part in parts])
-        indices = np.concatenate([part[1] + offset for part, offset in zip(parts, offsets)])
-        colors = None
-        if any(part[2] is not None for part in parts):       # primitives without COLOR_0 are white
-            colors = np.concatenate([part[2] if part[2] is not None else np.ones((len(part[0]), 4))
-                                     for part in parts])
-        normals = np.concatenate([part[3] for part in parts]) if parts[0][3] is not None else None
-        uvs = np.concatenate([part[4] for part in parts]) if parts[0][4] is not None else None
-        return MeshArrays(positions, indices, colors, normals, uvs)
-
-    def primitive(self, m: int, p: int, world: np.ndarray):
-        where = f"meshes[{m}].primitives[{p}]"
-        primitive = self.gltf["meshes"][m]["primitives"][p]
-        attributes = primitive["attributes"]
-        positions = self.floats(attributes["POSITION"], where, (3,), "POSITION")
-        if "indices" in primitive:
-            array, dtype, _ = self.accessor(primitive["indices"], where)
-            if dtype.kind != "u" or array.shape[1] != 1:
-                raise _Bad(f"{where}: indices must be unsigned integer scalars, got {array.shape[1]} x {dtype.name}")
-            flat = array.reshape(-1).astype(np.int64)
-        else:
-            flat = np.arange(len(positions), dtype=np.int64)
-        if len(flat) % 3:
-            raise _Bad(f"{where}: {len(flat)} indices, not a multiple of 3")
-        indices = flat.reshape(-1, 3)
-        bad = flat >= len(positions)
-        if bad.any():
-            raise _Bad(f"{where}: index {int(flat[np.argmax(bad)])} out of range for {len(positions)} vertices")
-        normals = self.floats(attributes["NORMAL"], where, (3,), "NORMAL") if "NORMAL" in attributes else None
-        uvs = self.floats(attributes["TEXCOORD_0"], where, (2,), "TEXCOORD_0") if "TEXCOORD_0" in attributes else None
-        colors = None
-        if "COLOR_0" in attributes:
-            channels = self.floats(attributes["COLOR_0"], where, (3, 4), "COLOR_0")
-            colors = np.ones((len(channels), 4))
-            colors[:, :channels.shape[1]] = channels
-        for name, array in (("NORMAL", normals), ("TEXCOORD_0", uvs), ("COLOR_0", colors)):
-            if array is not None and len(array) != len(positions):
-                raise _Bad(f"{where}: {name} has {len(array)} entries for {len(positions)} positions")
-        if not np.array_equal(world, np.identity(4)):
-            positions = positions @ world[:3, :3].T + world[:3, 3]
-            linear = world[:3, :3]
-            if normals is not None:
-                with np.errstate(all="ignore"):
-                    normals = normals @ np.linalg.inv(linear)          # (inverse transpose) applied to rows
-            if np.linalg.det(linear) < 0:
-                indices = indices[:, ::-1]                              # keep counter-clockwise front faces
-        return positions, indices, colors, normals, uvs
+def _gltf_mesh(file: gltf_files.GltfFile, max_triangles: int) -> MeshArrays:
+    required = file.document.get("extensionsRequired", [])
+    if required:
+        raise _Bad(f"needs glTF extension(s) {', '.join(map(str, required))}, not supported")
+    primitives = [(m, p, world) for m, world in _gltf_draws(file)
+                  for p in range(len(file.item("meshes", m, "nodes").get("primitives", [])))]
+    vertices = triangles = 0
+    for m, p, _ in primitives:                 # sizes first, from the accessors' counts
+        counts = file.primitive_counts(m, p)
+        vertices, triangles = vertices + counts[0], triangles + counts[1]
+        _check_counts(vertices, triangles, max_triangles)
+    parts = [_transformed(file.primitive(m, p), world) for m, p, world in primitives]
+    if not parts:
+        raise _Bad("no mesh primitives (no triangles)")
+    for key, what in ((3, "normals (NORMAL)"), (4, "uvs (TEXCOORD_0)")):
+        has = [part[key] is not None for part in parts]
+        if any(has) and not all(has):
+            missing, present = has.index(False), has.index(True)
+            raise _Bad(f"primitive {present} has {what} and primitive {missing} has not "
+                       f"(counting the primitives drawn, in order)")
+    offsets = np.cumsum([0] + [len(part[0]) for part in parts])
+    positions = np.concatenate([part[0] for part in parts])
+    indices = np.concatenate([part[1] + offset for part, offset in zip(parts, offsets)])
+    colors = None
+    if any(part[2] is not None for part in parts):       # primitives without COLOR_0 are white
+        colors = np.concatenate([part[2] if part[2] is not None else np.ones((len(part[0]), 4))
+                                 for part in parts])
+    normals = np.concatenate([part[3] for part in parts]) if parts[0][3] is not None else None
+    uvs = np.concatenate([part[4] for part in parts]) if parts[0][4] is not None else None
+    return MeshArrays(positions, indices, colors, normals, uvs)
 
 
-def _node_matrix(node: dict) -> np.ndarray:
-    """A glTF node's local matrix: ``matrix`` (column-major) or T · R · S."""
-    if "matrix" in node:
-        matrix = np.array(node["matrix"], dtype=np.float64)
-        if matrix.shape != (16,):
-            raise _Bad(f"a node matrix has {matrix.size} numbers, expected 16")
-        return matrix.reshape(4, 4).T
-    x, y, z, w = (float(c) for c in node.get("rotation", (0, 0, 0, 1)))
-    rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-    local = np.identity(4)
-    local[:3, :3] = rotation * np.array([float(s) for s in node.get("scale", (1, 1, 1))])
-    local[:3, 3] = [float(t) for t in node.get("translation", (0, 0, 0))]
-    return local
+def _transformed(primitive: gltf_files.Primitive, world: np.ndarray) -> gltf_files.Primitive:
+    """A primitive's arrays in world space: positions by ``world``, normals by
+    its inverse transpose, the winding reversed where ``world`` mirrors."""
+    positions, indices, colors, normals, uvs = primitive
+    if not np.array_equal(world, np.identity(4)):
+        positions = positions @ world[:3, :3].T + world[:3, 3]
+        linear = world[:3, :3]
+        if normals is not None:
+            with np.errstate(all="ignore"):
+                normals = normals @ np.linalg.inv(linear)          # (inverse transpose) applied to rows
+        if np.linalg.det(linear) < 0:
+            indices = indices[:, ::-1]                              # keep counter-clockwise front faces
+    return gltf_files.Primitive(positions, indices, colors, normals, uvs)
 
 
 _READERS = {".ply": _read_ply, ".obj": _read_obj, ".npz": _read_npz, ".glb": _read_gltf, ".gltf": _read_gltf}

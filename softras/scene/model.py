@@ -43,6 +43,9 @@ DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99
 FRAMEBUFFERS = ("rgba8", "rgba32f")
 # Top-level "render_order": the order both renderers draw in (see ordered_draws).
 RENDER_ORDERS = ("scene", "opaque_then_sorted")
+# Top-level "front_face": the winding in window space that makes a triangle
+# front-facing (glFrontFace: GL_CCW, the default, or GL_CW).
+FRONT_FACES = ("ccw", "cw")
 
 
 class SceneError(ValueError):
@@ -103,6 +106,9 @@ class Material:
     bump_map: str | None = None      # texture name: height in the red channel (phong only)
     bump_scale: float = 1.0          # bump strength (height units per texel, see softras.pipeline.fragment)
     displacement: "Displacement | None" = None  # already applied to Draw.mesh by the loader
+    # Alpha test (glTF's alphaMode MASK): a fragment whose final alpha (vertex x
+    # material x texel, before blending) is below this is discarded; None = no test.
+    alpha_cutoff: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,7 +165,7 @@ class Draw:
     material: Material
     depth_test: str | None    # None = depth test disabled
     depth_write: bool
-    cull: str                 # "none" | "back" | "front" (front face = counter-clockwise)
+    cull: str                 # "none" | "back" | "front" (front face: Scene.front_face)
     blend: str
 
 
@@ -178,6 +184,7 @@ class Scene:
     description: str = ""
     framebuffer: str = "rgba8"          # "rgba8" | "rgba32f" (see FRAMEBUFFERS)
     render_order: str = "scene"         # "scene" | "opaque_then_sorted" (see ordered_draws)
+    front_face: str = "ccw"             # "ccw" | "cw": the front winding in window space (FRONT_FACES)
 
 
 def _readonly(array: np.ndarray | None) -> np.ndarray | None:

@@ -21,6 +21,10 @@ meaning):
   buffer of both renderers (an rgba32f render returns float32 pixels);
 - top-level ``"render_order"``: ``"scene"`` (default, GL's draw order) or
   ``"opaque_then_sorted"`` (see :func:`ordered_draws`);
+- top-level ``"front_face"``: ``"ccw"`` (default) or ``"cw"``, glFrontFace:
+  which window-space winding is front-facing, for ``cull``;
+- material ``"alpha_cutoff"``: a number in [0, 1] (or null, the default: no
+  test): fragments whose alpha is below it are discarded (glTF's MASK);
 - ``"mesh": {"procedural": "grid" | "sphere" | "fan", ...}`` (see
   :mod:`softras.scene.meshes` and :data:`_PROCEDURAL_MESH_KEYS`);
 - ``"mesh": {"file": PATH}``: a PLY, OBJ, NPZ or glTF/GLB mesh file relative to
@@ -53,8 +57,9 @@ from typing import Any
 
 import numpy as np
 
-from softras.scene import displace, meshes, meshfiles, texels
+from softras.scene import displace, gltf, meshes, meshfiles, texels
 from softras.scene.model import (BLEND_MODES, CULL_MODES, DEFAULT_TOLERANCE, DEPTH_FUNCTIONS, FORMAT_VERSION, FRAMEBUFFERS,
+                                 FRONT_FACES,
                                  LIGHT_TYPES, MAG_FILTERS, MAX_NODE_DEPTH, MAX_PIXELS, MAX_SIDE, MAX_TEXELS,
                                  MIN_FILTERS, PRIMITIVES, PROCEDURAL_TEXTURES, PROJECTIONS, RENDER_ORDERS, SHADINGS,
                                  WRAP_MODES,
@@ -360,7 +365,7 @@ def _join(place: str, key) -> str:
 
 
 _TOP_KEYS = ("softras_scene", "description", "width", "height", "background", "samples",
-             "camera", "textures", "lights", "nodes", "tolerance", "framebuffer", "render_order")
+             "camera", "textures", "lights", "nodes", "tolerance", "framebuffer", "render_order", "front_face")
 
 
 def _parse_size(data: dict) -> tuple[int, int]:
@@ -678,7 +683,7 @@ def _parse_procedural_mesh(value, place: str, budget: list[int]) -> Mesh:
 
 
 _MATERIAL_KEYS = ("color", "texture", "shading", "ambient", "diffuse", "specular", "shininess",
-                  "normal_map", "bump_map", "bump_scale", "displacement")
+                  "normal_map", "bump_map", "bump_scale", "displacement", "alpha_cutoff")
 
 
 def _texture_name(value, place: str, textures: dict[str, Texture]) -> str:
@@ -716,7 +721,11 @@ def _parse_material(value, place: str, textures: dict[str, Texture]) -> Material
     displacement = None
     if "displacement" in data:
         displacement = _parse_displacement(data["displacement"], f"{place}.displacement", textures)
+    alpha_cutoff = None
+    if "alpha_cutoff" in data and data["alpha_cutoff"] is not None:
+        alpha_cutoff = _number(data["alpha_cutoff"], f"{place}.alpha_cutoff", 0.0, 1.0)
     return Material(
+        alpha_cutoff=alpha_cutoff,
         normal_map=maps.get("normal_map"), bump_map=maps.get("bump_map"), bump_scale=bump_scale,
         displacement=displacement,
         color=_readonly(_color(data.get("color", [1, 1, 1, 1]), f"{place}.color")),
@@ -781,6 +790,7 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
             if mesh.primitive == "lines":
                 lit = [key for key in ("texture", "normal_map", "bump_map") if getattr(material, key) is not None]
                 lit += [f"{material.shading} shading"] if material.shading != "unlit" else []
+                lit += ["alpha_cutoff"] if material.alpha_cutoff is not None else []
                 if lit:
                     raise SceneError(f"{node_place}.material", f"lines are drawn unlit and untextured, "
                                                                f"this material has {', '.join(lit)}")
@@ -867,10 +877,11 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = No
     tolerance = _parse_tolerance(data.get("tolerance", {}))
     framebuffer = _choice(data.get("framebuffer", "rgba8"), "framebuffer", FRAMEBUFFERS)
     render_order = _choice(data.get("render_order", "scene"), "render_order", RENDER_ORDERS)
+    front_face = _choice(data.get("front_face", "ccw"), "front_face", FRONT_FACES)
     return Scene(width=width, height=height, background=_readonly(background), samples=int(samples),
                  camera=camera, textures=textures, lights=lights, draws=tuple(draws),
                  tolerance=tolerance, source=source, description=description,
-                 framebuffer=framebuffer, render_order=render_order)
+                 framebuffer=framebuffer, render_order=render_order, front_face=front_face)
 
 
 def _reject_constant(name: str):
@@ -910,9 +921,14 @@ def _read_json(path: str) -> Any:
         raise SceneError(path, "invalid JSON: nested too deeply") from None
 
 
+#: The files `load_scene` reads as scenes (and `scene_files` finds in folders).
+SCENE_SUFFIXES = (".json",) + gltf.SUFFIXES
+
+
 def scene_files(paths) -> list[str]:
     """The scene files named by command-line PATHs: a file as given, a folder's
-    ``*.json`` files sorted by name; each file once, in the order found.
+    ``*.json``, ``*.gltf`` and ``*.glb`` files sorted by name; each file once,
+    in the order found.
 
     Raises FileNotFoundError (one line) for a path that does not exist and
     ValueError when the paths hold no scene file at all.
@@ -920,7 +936,7 @@ def scene_files(paths) -> list[str]:
     found: dict[str, None] = {}
     for path in map(os.fspath, paths):
         if os.path.isdir(path):
-            names = sorted(name for name in os.listdir(path) if name.endswith(".json"))
+            names = sorted(name for name in os.listdir(path) if name.endswith(SCENE_SUFFIXES))
             found.update((os.path.join(path, name), None) for name in names
                          if os.path.isfile(os.path.join(path, name)))
         elif os.path.isfile(path):
@@ -933,7 +949,8 @@ def scene_files(paths) -> list[str]:
 
 
 def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
-    """Load and validate a scene: a JSON file path, a dict, or a Scene (returned as is).
+    """Load and validate a scene: a JSON file path, a glTF file path (``.gltf`` or
+    ``.glb``, `softras.scene.gltf`), a dict, or a Scene (returned as is).
 
     Raises :class:`SceneError` (one line, starting with the place) for any problem.
     """
@@ -943,6 +960,8 @@ def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
         return scene_from_dict(source)
     if isinstance(source, (str, os.PathLike)):
         path = os.fspath(source)
+        if path.lower().endswith(gltf.SUFFIXES):         # a glTF file is a whole scene (docs/gltf.md)
+            return gltf.load_gltf_scene(path)
         data = _read_json(path)
         if not isinstance(data, dict):
             raise SceneError(path, f"the top level must be a JSON object, got {_type_name(data)}")

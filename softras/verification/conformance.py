@@ -118,7 +118,7 @@ def select(paths: Iterable[str | os.PathLike], *, patterns: Iterable[str] = (),
     Parameters
     ----------
     paths : iterable of path
-        Scene files, or folders whose ``*.json`` files are scenes.
+        Scene files, or folders whose ``*.json``, ``*.gltf`` and ``*.glb`` files are scenes.
     patterns : iterable of str
         ``-k``: keep scenes whose name (file stem) contains a pattern, or
         matches it as a glob (``*?[``). Several patterns: any may match.

@@ -308,7 +308,7 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
                                         policy=policy, width=width, height=height)
     tris = setup.setup_triangles(clipped.clip, width, height, precision=precision,
                                  cull=draw.cull, offsets=offsets, unit=unit,
-                                 generated=clipped.generated)
+                                 generated=clipped.generated, front_face=getattr(scene, "front_face", "ccw"))
 
     def in_box(ts):
         b = ts.bbox
@@ -643,7 +643,7 @@ def _u8(c) -> str:
 def _triangle_lines(p: dict, gl: bool) -> list[str]:
     out = []
     clip = f"clipped, one of {p['clip_pieces']} pieces" if p["clipped"] else "not clipped"
-    face = "front-facing (counter-clockwise)" if p["front_facing"] else "back-facing (clockwise)"
+    face = "front-facing" if p["front_facing"] else "back-facing"
     out.append(f"triangle {p['source_triangle']} (vertices {' '.join(map(str, p['source_vertices']))}), "
                f"{clip}, {face}: {p['status']}")
     out.append("  vertices (setup order, counter-clockwise; window x, y, z_w; raster = "

@@ -157,7 +157,9 @@ def scene_tolerance(path: str | os.PathLike | None, scene) -> tuple[dict, str]:
     ``path`` None (a scene built in memory): the scene's ``declares_tolerance``
     attribute when it has one, else the defaults.
     """
-    if path is not None:
+    if path is not None and Path(path).suffix.lower() in (".gltf", ".glb"):
+        declared = False        # a glTF scene has no tolerance key: the feature defaults
+    elif path is not None:
         try:
             declared = "tolerance" in json.loads(Path(path).read_text(encoding="utf-8"))
         except (OSError, ValueError):

@@ -1,0 +1,349 @@
+"""glTF files as scenes (`softras.load_scene("model.glb")`, softras.scene.gltf, docs/gltf.md).
+
+Every file is built here in tmp_path with the writer of
+scripts/make_gltf_scenes.py (no exporter library), so each test knows what
+the file says.  The checks:
+
+- softras and glref agree (strict verifier) on glTF scenes: the conformance
+  scenes of scenes/, a vertex-coloured mesh with 8/16/32-bit indices and
+  interleaved attributes, MASK and BLEND materials;
+- a glTF texture shows upright (uv (0, 0) = the image's top-left corner);
+- a mirrored node (negative determinant) keeps its front faces (reversed
+  winding), the first camera of the traversal is used, and a file without
+  a camera gets the documented framing camera;
+- the documented mappings (metallic-roughness to Blinn-Phong, picture size,
+  OPAQUE ignores alpha);
+- `softras render model.glb` works; malformed and unsupported files are one
+  line naming the file and the glTF place, exit 2, nothing written;
+- conformance finds .gltf / .glb files in folders.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+import softras
+from softras import cli
+from softras.scene import SceneError, gltf, load_scene, scene_files
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_spec = importlib.util.spec_from_file_location("make_gltf_scenes", os.path.join(REPO, "scripts", "make_gltf_scenes.py"))
+make = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(make)
+GltfWriter = make.GltfWriter
+
+CONFORMANCE = ["gltf_textured_box.glb", "gltf_alpha_modes.gltf", "gltf_hierarchy_framed.glb"]
+UNLIT = {"KHR_materials_unlit": {}}
+
+
+def soft_and_gl(scene):
+    soft = softras.render(scene)
+    gl = softras.render(scene, backend="gl")
+    verdict = softras.verify(scene, soft, gl, profile="strict")
+    assert verdict.verdict == "pass", verdict
+    return soft, gl
+
+
+def ortho_camera(g: GltfWriter, xmag=1.0, ymag=1.0) -> int:
+    camera = g.add("cameras", {"type": "orthographic", "orthographic": {"xmag": xmag, "ymag": ymag,
+                                                                        "znear": 0.1, "zfar": 10}})
+    return g.node(name="camera", translation=[0, 0, 5], camera=camera)
+
+
+QUADRANTS = {"top_left": (255, 0, 0, 255), "top_right": (0, 255, 0, 255),
+             "bottom_left": (0, 0, 255, 255), "bottom_right": (255, 255, 255, 255)}
+
+
+def quadrant_pixels(side=8, alpha=255):
+    pixels = np.zeros((side, side, 4), np.uint8)
+    h = side // 2
+    pixels[:h, :h], pixels[:h, h:] = QUADRANTS["top_left"], QUADRANTS["top_right"]
+    pixels[h:, :h], pixels[h:, h:] = QUADRANTS["bottom_left"], QUADRANTS["bottom_right"]
+    pixels[..., 3] = alpha
+    return pixels
+
+
+def textured_quad(tmp_path, name="quad.gltf", where="data", material=None, alpha=255, **node):
+    """A quad filling an orthographic view, its image upright by glTF's convention."""
+    g = GltfWriter()
+    g.doc["extensionsUsed"] = ["KHR_materials_unlit"]
+    texture = g.texture(g.image(quadrant_pixels(alpha=alpha), where, "quadrants.png"), magFilter=9728,
+                        minFilter=9728)
+    m = g.add("materials", material or {"extensions": UNLIT,
+                                        "pbrMetallicRoughness": {"baseColorTexture": {"index": texture}}})
+    p, uv, t = make.quad(2, 2)
+    g.scene(ortho_camera(g), g.node(mesh=g.mesh(g.primitive(p, t, uvs=uv, material=m)), **node))
+    return g.write(tmp_path / name)
+
+
+# --------------------------------------------------------------------------- pictures against GL
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("name", CONFORMANCE)
+def test_conformance_scenes_soft_matches_gl(name):
+    soft, _ = soft_and_gl(load_scene(os.path.join(REPO, "scenes", name)))
+    assert soft[..., :3].any()
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("where", ["data", "bufferView", "file"])
+def test_gltf_texture_is_upright(tmp_path, where):
+    path = textured_quad(tmp_path, "quad.glb" if where == "bufferView" else "quad.gltf", where)
+    scene = load_scene(str(path))
+    assert (scene.width, scene.height) == (256, 256)
+    for picture in soft_and_gl(scene):
+        for (row, col), quadrant in {(64, 64): "top_left", (64, 192): "top_right", (192, 64): "bottom_left",
+                                     (192, 192): "bottom_right"}.items():
+            assert tuple(picture[row, col]) == QUADRANTS[quadrant], (where, quadrant, picture[row, col])
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("index_bits, interleaved, suffix", [(8, False, ".glb"), (16, True, ".glb"),
+                                                            (32, True, ".gltf")])
+def test_vertex_coloured_mesh_soft_matches_gl(tmp_path, index_bits, interleaved, suffix):
+    rng = np.random.default_rng(index_bits)
+    xs, ys = np.meshgrid(np.linspace(-0.9, 0.9, 6), np.linspace(-0.9, 0.9, 6))
+    positions = np.stack([xs.ravel(), ys.ravel(), 0.3 * np.sin(3 * xs.ravel() + 2 * ys.ravel())], axis=1)
+    ids = np.arange(36).reshape(6, 6)
+    a, b, c, d = ids[:-1, :-1].ravel(), ids[:-1, 1:].ravel(), ids[1:, 1:].ravel(), ids[1:, :-1].ravel()
+    triangles = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    colors = np.concatenate([rng.uniform(0, 1, (36, 3)), np.ones((36, 1))], axis=1)
+    g = GltfWriter()
+    m = g.add("materials", {"extensions": UNLIT})
+    mesh = g.mesh(g.primitive(positions, triangles, colors=colors, color_code="u2", normals=np.tile([0, 0, 1], (36, 1)),
+                              interleaved=interleaved, index_bits=index_bits, material=m))
+    g.scene(ortho_camera(g), g.node(mesh=mesh, rotation=[0.2, 0.1, 0, 0.975]))
+    path = g.write(tmp_path / f"coloured{suffix}", external_bin="coloured.bin" if suffix == ".gltf" else None)
+    scene = load_scene(str(path))
+    np.testing.assert_array_equal(scene.draws[0].mesh.indices, triangles)
+    np.testing.assert_allclose(scene.draws[0].mesh.colors, np.round(colors * 65535) / 65535)
+    soft_and_gl(scene)
+
+
+@pytest.mark.gl
+def test_mask_and_blend_soft_matches_gl(tmp_path):
+    """MASK with a linearly filtered texture whose alpha crosses the cutoff, over
+    an opaque quad, under two BLEND quads: identical to GL, byte for byte."""
+    g = GltfWriter()
+    g.doc["extensionsUsed"] = ["KHR_materials_unlit"]
+    pixels = quadrant_pixels()
+    pixels[::2, 1::2, 3] = 40                      # a fine pattern of alpha 40 / 255 texels
+    texture = g.texture(g.image(pixels), magFilter=9729, minFilter=9729)
+    mask = g.add("materials", {"extensions": UNLIT, "alphaMode": "MASK", "alphaCutoff": 0.6,
+                               "pbrMetallicRoughness": {"baseColorTexture": {"index": texture}}})
+    blend = g.add("materials", {"extensions": UNLIT, "alphaMode": "BLEND",
+                                "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.9, 0.9, 0.5]}})
+    opaque = g.add("materials", {"extensions": UNLIT, "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0, 0.5, 0.1]}})
+    p, uv, t = make.quad(1.6, 1.6)
+    g.scene(ortho_camera(g),
+            g.node(mesh=g.mesh(g.primitive(p * 0.6, t, material=blend)), translation=[0.3, 0.3, 1]),
+            g.node(mesh=g.mesh(g.primitive(p, t, uvs=uv, material=mask)), rotation=[0, 0, 0.1, 0.995]),
+            g.node(mesh=g.mesh(g.primitive(p * 1.2, t, material=opaque)), translation=[0, 0, -1]),
+            g.node(mesh=g.mesh(g.primitive(p * 0.6, t, material=blend)), translation=[-0.3, -0.3, -0.5]))
+    scene = load_scene(str(g.write(tmp_path / "alpha.glb")))
+    assert scene.render_order == "opaque_then_sorted"
+    assert [d.blend for d in scene.draws] == ["over", "none", "none", "over"]
+    assert scene.draws[1].material.alpha_cutoff == 0.6
+    soft, gl = soft_and_gl(scene)
+    np.testing.assert_array_equal(soft, gl)
+    assert tuple(soft[128, 10]) == (128, 0, 128, 255)         # OPAQUE: alpha 0.1 ignored
+
+
+@pytest.mark.gl
+def test_mirrored_node_keeps_its_front_faces_and_first_camera_is_used(tmp_path):
+    """Two single-sided quads facing the camera; the second under scale (-1, 1, 1)
+    (negative determinant): both drawn, culling back faces, the second one's
+    texture mirrored.  A second camera later in the traversal is ignored."""
+    g = GltfWriter()
+    g.doc["extensionsUsed"] = ["KHR_materials_unlit"]
+    texture = g.texture(g.image(quadrant_pixels()), magFilter=9728, minFilter=9728)
+    m = g.add("materials", {"extensions": UNLIT, "pbrMetallicRoughness": {"baseColorTexture": {"index": texture}}})
+    p, uv, t = make.quad(0.9, 0.9)
+    mesh = g.mesh(g.primitive(p, t, uvs=uv, material=m))
+    other = g.add("cameras", {"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.1}})
+    group = g.node(name="group", translation=[0, 0, 0.5],
+                   children=[g.node(mesh=mesh, translation=[-0.5, 0, 0]),
+                             g.node(mesh=mesh, translation=[0.5, 0, 0], scale=[-1, 1, 1]),
+                             g.node(camera=other, translation=[0, 0, 9])])
+    g.scene(ortho_camera(g), group)
+    scene = load_scene(str(g.write(tmp_path / "mirror.glb")))
+    assert scene.camera.kind == "orthographic"
+    np.testing.assert_array_equal(scene.draws[1].mesh.indices, t[:, ::-1])
+    assert all(d.cull == "back" for d in scene.draws)
+    soft, gl = soft_and_gl(scene)
+    # left quad upright: its top-left quadrant red; the mirrored one: its top-left shows green
+    assert tuple(soft[80, 50]) == QUADRANTS["top_left"] and tuple(soft[80, 145]) == QUADRANTS["top_right"]
+
+
+def test_framing_camera_without_a_camera(tmp_path):
+    g = GltfWriter()
+    positions, normals, uvs, triangles = make.box()
+    g.scene(g.node(mesh=g.mesh(g.primitive(positions * [2, 1, 1] + [1, 2, 3], triangles, normals=normals))))
+    scene = load_scene(str(g.write(tmp_path / "framed.glb")))
+    lo, hi = np.array([0, 1.5, 2.5]), np.array([2, 2.5, 3.5])
+    r = np.linalg.norm(hi - lo) / 2
+    d = r / math.sin(math.radians(22.5))
+    eye = np.linalg.inv(scene.camera.view)[:3, 3]
+    np.testing.assert_allclose(eye, (lo + hi) / 2 + [0, 0, d])
+    assert (scene.width, scene.height) == (256, 256)
+    np.testing.assert_allclose(scene.camera.projection,
+                               softras.scene.perspective_matrix(45, 1, (d - r) / 2, 2 * (d + r)))
+    assert len(scene.lights) == 1 and scene.draws[0].material.shading == "phong"     # the default rig
+
+
+def test_camera_picture_size_and_infinite_far(tmp_path):
+    g = GltfWriter()
+    camera = g.add("cameras", {"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.2, "aspectRatio": 2.0}})
+    p, _, t = make.quad()
+    g.scene(g.node(camera=camera, translation=[0, 0, 3]), g.node(mesh=g.mesh(g.primitive(p, t))))
+    scene = load_scene(str(g.write(tmp_path / "wide.gltf")))
+    assert (scene.width, scene.height) == (512, 256) and scene.camera.kind == "matrix"
+    f = 1 / math.tan(0.35)
+    np.testing.assert_allclose(scene.camera.projection,
+                               [[f / 2, 0, 0, 0], [0, f, 0, 0], [0, 0, -1, -0.4], [0, 0, -1, 0]])
+
+
+def test_pbr_mapping():
+    factors = gltf.blinn_phong_from_pbr(np.array([1.0, 0.5, 0.0, 1.0]), metallic=0.25, roughness=0.5)
+    assert factors["diffuse"] == 0.75 and factors["ambient"] == gltf.AMBIENT
+    assert factors["specular"] == pytest.approx(0.04 * 0.75 + 0.25 * (0.2126 + 0.7152 * 0.5))
+    assert factors["shininess"] == pytest.approx(2 / 0.25 ** 2 - 2)
+    assert gltf.blinn_phong_from_pbr(np.ones(4), 0.0, 0.0)["shininess"] == 4096
+    assert gltf.blinn_phong_from_pbr(np.ones(4), 0.0, 1.0)["shininess"] == 1
+
+
+def test_opaque_ignores_alpha(tmp_path):
+    scene = load_scene(str(textured_quad(tmp_path, alpha=60)))
+    texture = scene.textures[scene.draws[0].material.texture]
+    assert (texture.levels[0][..., 3] == 255).all()
+    np.testing.assert_array_equal(texture.levels[0][..., :3], quadrant_pixels()[..., :3])
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def test_cli_render_writes_the_picture(tmp_path, capsys):
+    path = textured_quad(tmp_path)
+    out = tmp_path / "out.png"
+    assert cli.main(["render", str(path), "-o", str(out)]) == 0
+    from softras.scene.imageio import read_png
+    picture = read_png(out)
+    assert picture.shape == (256, 256, 4) and tuple(picture[64, 64]) == QUADRANTS["top_left"]
+
+
+def test_conformance_finds_gltf_files_in_folders(tmp_path):
+    textured_quad(tmp_path, "a.gltf", "file")
+    textured_quad(tmp_path, "b.glb", "bufferView")
+    (tmp_path / "c.json").write_text("{}")
+    names = [os.path.basename(p) for p in scene_files([tmp_path])]
+    assert names == ["a.gltf", "b.glb", "c.json"]
+    from softras.verification.conformance import select
+    assert [p.name for p in select([tmp_path / "b.glb"])] == ["b.glb"]
+
+
+# --------------------------------------------------------------------------- refusals
+
+
+def _bad_files(folder):
+    """name -> (file, the start of the reason after 'PATH: ')."""
+    good = textured_quad(folder, "good.glb", "bufferView").read_bytes()
+    (folder / "truncated.glb").write_bytes(good[:-40])
+
+    def variant(name, edit, where="bufferView"):
+        path = textured_quad(folder, name, where)
+        if path.suffix == ".gltf":
+            doc = json.loads(path.read_text())
+            edit(doc)
+            path.write_text(json.dumps(doc))
+        return path.name
+
+    def out_of_range(doc):
+        g_index = doc["meshes"][0]["primitives"][0]["indices"]
+        doc["accessors"][g_index]["count"] = 6
+        doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["count"] = 2
+
+    def draco(doc):
+        doc["meshes"][0]["primitives"][0]["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0}}
+
+    def required(doc):
+        doc["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+
+    def skin(doc):
+        doc["nodes"][1]["skin"] = 0
+
+    def transform(doc):
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] = {"KHR_texture_transform": {}}
+
+    def strip(doc):
+        doc["meshes"][0]["primitives"][0]["mode"] = 5
+
+    def point_light(doc):
+        doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point"}]}}
+        doc["nodes"][1]["extensions"] = {"KHR_lights_punctual": {"light": 0}}
+
+    def texcoord1(doc):
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] = 1
+
+    missing = variant("missing.gltf", lambda doc: None, "file")
+    os.remove(folder / "quadrants.png")
+    return {
+        "truncated_glb": ("truncated.glb", "truncated"),
+        "index_out_of_range": (variant("range.gltf", out_of_range, "data"),
+                               "meshes[0].primitives[0]: index 2 out of range for 2 vertices"),
+        "missing_texture_file": (missing, "images[0]: no such file 'quadrants.png'"),
+        "draco": (variant("draco.gltf", draco, "data"),
+                  "meshes[0].primitives[0].extensions.KHR_draco_mesh_compression: not supported"),
+        "extension_required": (variant("required.gltf", required, "data"),
+                               "extensionsRequired[0]: KHR_draco_mesh_compression: not supported"),
+        "skin": (variant("skin.gltf", skin, "data"), "nodes[1].skin: skins are not supported"),
+        "texture_transform": (variant("transform.gltf", transform, "data"),
+                              "materials[0].pbrMetallicRoughness.baseColorTexture.extensions.KHR_texture_transform: "
+                              "not supported"),
+        "triangle_strip": (variant("strip.gltf", strip, "data"),
+                           "meshes[0].primitives[0]: mode 5 (TRIANGLE_STRIP) is not supported"),
+        "point_light": (variant("point.gltf", point_light, "data"),
+                        "extensions.KHR_lights_punctual.lights[0].type: 'point' lights are not supported"),
+        "texcoord_1": (variant("uv1.gltf", texcoord1, "data"),
+                       "materials[0].pbrMetallicRoughness.baseColorTexture.texCoord: 1 not supported"),
+    }
+
+
+BAD = ["draco", "extension_required", "index_out_of_range", "missing_texture_file", "point_light", "skin",
+       "texcoord_1", "texture_transform", "triangle_strip", "truncated_glb"]
+
+
+def test_the_list_of_bad_files_is_complete(tmp_path):
+    assert sorted(_bad_files(tmp_path)) == BAD
+
+
+@pytest.mark.parametrize("case", BAD)
+def test_bad_file_is_one_line_naming_file_and_place(tmp_path, case):
+    name, reason = _bad_files(tmp_path)[case]
+    path = str(tmp_path / name)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith(f"{path}: {reason}"), message
+
+
+@pytest.mark.parametrize("case", ["truncated_glb", "draco", "skin", "missing_texture_file", "index_out_of_range"])
+def test_cli_exits_2_and_writes_nothing(tmp_path, capsys, case):
+    name, reason = _bad_files(tmp_path)[case]
+    output = tmp_path / "out.png"
+    output.write_bytes(b"previous output")
+    before = sorted(os.listdir(tmp_path))
+    status = cli.main(["render", str(tmp_path / name), "-o", str(output)])
+    captured = capsys.readouterr()
+    assert status == 2
+    assert captured.err.count("\n") == 1 and "Traceback" not in captured.err, captured.err
+    assert captured.err.startswith(f"softras: error: {tmp_path / name}: {reason}"), captured.err
+    assert output.read_bytes() == b"previous output"
+    assert sorted(os.listdir(tmp_path)) == before
