@@ -391,7 +391,7 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
         fbo.clear(float(bg[0] * bg[3]), float(bg[1] * bg[3]), float(bg[2] * bg[3]),
                   float(bg[3]), depth=1.0)
 
-        front_face = getattr(scene, "front_face", "ccw")
+        front_face = scene.front_face
         if front_face not in ("ccw", "cw"):
             raise ValueError(f"glref: unknown front_face {front_face!r}")
         ctx.front_face = front_face             # glFrontFace: which winding culling calls front

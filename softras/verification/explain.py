@@ -308,7 +308,7 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
                                         policy=policy, width=width, height=height)
     tris = setup.setup_triangles(clipped.clip, width, height, precision=precision,
                                  cull=draw.cull, offsets=offsets, unit=unit,
-                                 generated=clipped.generated, front_face=getattr(scene, "front_face", "ccw"))
+                                 generated=clipped.generated, front_face=scene.front_face)
 
     def in_box(ts):
         b = ts.bbox
