@@ -77,6 +77,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from softras.scene.parse import SCENE_SUFFIXES
+
 __all__ = [
     "SCENES_DIR", "GOLDEN_DIR", "MANIFEST", "GoldenError", "Change", "Verification",
     "golden_path", "default_scenes", "pixel_hash", "provenance", "read_manifest", "update", "verify",
@@ -124,12 +126,15 @@ def golden_path(scene_path: str | os.PathLike, golden_dir: str | os.PathLike | N
 
 
 def default_scenes(scenes_dir: str | os.PathLike | None = None) -> list[Path]:
-    """The scene files of a folder, ``*.json``, sorted.
+    """The scene files of a folder (``*.json``, ``*.gltf``, ``*.glb``: the
+    suffixes `softras.scene.parse.scene_files` takes), sorted by name.
 
     ``scenes_dir`` defaults to ``scenes/`` of the current directory
     (:data:`SCENES_DIR`): this repository's scenes when run from its root.
     """
-    return sorted(Path(scenes_dir if scenes_dir is not None else SCENES_DIR).glob("*.json"))
+    folder = Path(scenes_dir if scenes_dir is not None else SCENES_DIR)
+    return sorted((path for path in folder.iterdir() if path.name.endswith(SCENE_SUFFIXES) and path.is_file()),
+                  key=lambda path: path.name) if folder.is_dir() else []
 
 
 def pixel_hash(image: np.ndarray) -> str:
