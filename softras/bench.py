@@ -17,12 +17,19 @@ and every upload included: the shared scene layer does the same work for
 both renderers), and ``file_ratio``; these take interleaved pairs, at least
 `E2E_MIN_PAIRS` of them where they fit in `E2E_BUDGET` seconds.
 
-Error is measured against a ground truth rendered by softras itself:
-``precision="exact"`` with 16 samples per pixel on a rotated grid
-(`TRUTH`).  For each level we report the mean absolute difference (per
-channel, in /255) and the fraction of pixels with a channel off by more than
-2/255.  The truth level itself therefore has error 0 by construction; its
-row still gives its cost.
+Error is measured against one ground truth that favours no level
+(`truth_image`): the scene supersampled in exact precision with the texture
+as a continuous function, bilinear on level 0 at every sample, no mipmaps
+(`softras.verification.ground_truth.supersampled_reference`, the truth of
+docs/textures_and_lighting.md), `truth_factor` x `truth_factor` samples per
+pixel on a regular grid, as many as keep the supersampled picture within
+`TRUTH_MAX_SIDE` pixels a side (16x16 on a 128-pixel scene, 4x4 at 512, 2x2
+at 1024; no error figures beyond).  A truth rendered with one of the levels'
+own filters would score that filter best: the former truth, ``exact`` at 16
+rotated-grid samples with trilinear filtering, put ripmap and EWA behind
+trilinear on the floor.  For each level we report the mean absolute
+difference (per channel, in /255) and the fraction of pixels with a channel
+off by more than 2/255.
 
 Memory: ``peak_mib`` is the peak of Python-tracked allocations during one
 extra (untimed) render, measured with ``tracemalloc``: numpy arrays and
@@ -83,14 +90,15 @@ class Level:
     max_pixels: int = 1 << 22         # skip on larger images (memory / time)
 
 
-TRUTH = {"precision": "exact", "samples": 16, "pattern": "rotated_grid"}
+EXACT_16 = {"precision": "exact", "samples": 16, "pattern": "rotated_grid"}
+TRUTH_MAX_SIDE = 2048   # the supersampled truth's largest side (memory: the exact stages hold every fragment)
 E2E_LEVEL = "gl"        # the level also timed end to end from the scene file
 
 LEVELS = [
     Level("gl", {"precision": "gl"}, "gl precision at the scene's samples (llvmpipe bit for bit)"),
     Level("exact", {"precision": "exact"}, "float64, unsnapped, the scene's samples"),
     Level("gl_msaa4", {"precision": "gl", "samples": 4}, "gl precision, llvmpipe's 4x MSAA"),
-    Level("exact_16", TRUTH, "exact, 16 samples, rotated grid (the ground truth)", max_pixels=1 << 20),
+    Level("exact_16", EXACT_16, "exact, 16 samples, rotated grid", max_pixels=1 << 20),
     Level("exact_64", {"precision": "exact", "samples": 64, "pattern": "rotated_grid"},
           "exact, 64 samples, rotated grid", quick=False, max_pixels=1 << 18),
     Level("gl_ripmap", {"precision": "gl", "texture_filter": "ripmap"}, "ripmap texture filter",
@@ -237,12 +245,26 @@ def applicable(level: Level, scene, full: bool) -> bool:
     return scene.width * scene.height <= level.max_pixels
 
 
+def truth_factor(scene) -> int:
+    """Samples per pixel side of the ground truth: the most, up to 16, that
+    keep the supersampled picture within `TRUTH_MAX_SIDE` pixels a side."""
+    return max(1, min(16, TRUTH_MAX_SIDE // max(scene.width, scene.height)))
+
+
+def truth_image(scene) -> np.ndarray:
+    """The ground truth of the error figures, (H, W, 4) float64 on the 0..255
+    scale like a render's bytes: `supersampled_reference` at `truth_factor`."""
+    from softras.verification.ground_truth import supersampled_reference
+    return supersampled_reference(scene, truth_factor(scene)) * 255.0
+
+
 def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool = True,
             full: bool = False, memory: bool = True) -> list[Row]:
     """Time glref and each applicable softras level on one scene.
 
     levels : a list of `Level` (default `LEVELS`) or a dict name -> options.
-    errors : compare each level with the `TRUTH` rendering.
+    errors : compare each level with the `truth_image` (when the scene is
+        small enough for one).
     """
     import softras
 
@@ -254,7 +276,7 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
     triangles = sum(len(d.mesh.indices) for d in scene.draws)
     pixels = scene.width * scene.height
     gl_seconds, _ = _median_time(lambda: softras.render(scene, backend="gl"), runs)
-    truth = softras.render(scene, **TRUTH).astype(float) if errors else None
+    truth = truth_image(scene) if errors and truth_factor(scene) >= 2 else None
     rows = []
     for level in levels:
         if not applicable(level, scene, full):
@@ -413,7 +435,8 @@ def run(runs: int = 3, full: bool = False, max_triangles: int = 1_000_000, max_s
              f"load_scene {figure['load_seconds'] * 1e3:.1f} ms, json.load {figure['json_seconds'] * 1e3:.1f} ms, "
              f"ratio {figure['ratio']:.2f}")
     report = {"rows": [asdict(r) for r in rows], "fits": fits, "loader": loader, "runs": runs, "full": full,
-              "truth": TRUTH, "levels": [asdict(level) for level in LEVELS],
+              "truth": "supersampled_reference, exact, level-0 bilinear, up to 16x16 samples per pixel "
+                       f"within {TRUTH_MAX_SIDE} pixels a side", "levels": [asdict(level) for level in LEVELS],
               "memory": "peak_mib: tracemalloc peak of one render (numpy and Python allocations, not "
                         "numba-internal ones); rss_mib: process peak RSS so far (getrusage)"}
     if out_json:
