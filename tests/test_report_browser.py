@@ -11,7 +11,8 @@ log (a missing picture is a ``net::ERR_FILE_NOT_FOUND`` there), every
 ``<img>`` must have decoded (``naturalWidth`` > 0) and exist on disk, and
 every in-page link must name an element of the page.
 
-Chromium is Debian's ``chromium`` (``.ci/run`` installs it when missing);
+Chromium is Debian's ``chromium`` (``scripts/install_test_tools.sh`` in the README's test
+command installs it when missing);
 ``SOFTRAS_CHROMIUM`` names another binary. As with GL (tests/conftest.py), a
 missing browser fails these tests unless ``SOFTRAS_ALLOW_NO_BROWSER=1``.
 """
