@@ -274,19 +274,34 @@ def _indices(value, width: int, vertex_count: int, place: str) -> np.ndarray:
 # same input and every error message comes from one place.
 
 
-def _uniform_rows(value, widths) -> int | None:
+_NUMBERS = frozenset((float, int))     # JSON's numbers as Python types (bool is not int here: type() is exact)
+_INTS = frozenset((int,))
+
+
+def _uniform_rows(value, widths, kinds) -> int | None:
     """The common row length of ``value``, a list of lists each of one length
-    in ``widths``, whose every entry is a JSON number (int or float, not bool);
-    None otherwise."""
+    in ``widths``, whose every entry's type is one of ``kinds``; None
+    otherwise."""
     if type(value) is not list or not value or set(map(type, value)) != {list}:
         return None
     lengths = set(map(len, value))
     if len(lengths) != 1:
         return None
     row_width = lengths.pop()
-    if row_width not in widths or not set(map(type, itertools.chain.from_iterable(value))) <= {float, int}:
+    if row_width not in widths or not set(map(type, itertools.chain.from_iterable(value))) <= kinds:
         return None
     return row_width
+
+
+def _from_rows(value: list, row_width: int, dtype) -> np.ndarray | None:
+    """`_uniform_rows`' lists as an (N, row_width) array (numpy reads the
+    flattened values twice as fast as the nested lists); None when a number
+    does not fit ``dtype`` (an int beyond float64's or int64's range)."""
+    try:
+        flat = np.fromiter(itertools.chain.from_iterable(value), dtype, count=len(value) * row_width)
+    except OverflowError:
+        return None
+    return flat.reshape(-1, row_width)
 
 
 def _fast_array(value, widths, lo: float, hi: float) -> np.ndarray | None:
@@ -297,11 +312,8 @@ def _fast_array(value, widths, lo: float, hi: float) -> np.ndarray | None:
             return None
         out = value.astype(np.float64)
     else:
-        if _uniform_rows(value, widths) is None:
-            return None
-        try:
-            out = np.array(value, dtype=np.float64)
-        except OverflowError:                    # an int beyond float64's range
+        row_width = _uniform_rows(value, widths, _NUMBERS)
+        if row_width is None or (out := _from_rows(value, row_width, np.float64)) is None:
             return None
     with np.errstate(invalid="ignore"):
         if not (np.isfinite(out).all() and (lo == -math.inf or out.min() >= lo)
@@ -317,26 +329,20 @@ def _fast_indices(value, width: int, vertex_count: int) -> np.ndarray | None:
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iu" or value.ndim not in (1, 2) or not value.size:
             return None
-        out = value.astype(np.int64)
-    elif type(value) is list and value and type(value[0]) is list:
-        if _uniform_rows(value, (width,)) is None or not set(map(type, itertools.chain.from_iterable(value))) <= {int}:
+        if value.size % width or (value.ndim == 2 and value.shape[1] != width):
             return None
-        try:
-            out = np.array(value, dtype=np.int64)
-        except OverflowError:
+        out = value.astype(np.int64).reshape(-1, width)
+    elif type(value) is list and value and type(value[0]) is list:
+        if _uniform_rows(value, (width,), _INTS) is None or (out := _from_rows(value, width, np.int64)) is None:
             return None
     elif type(value) is list and value:
-        if set(map(type, value)) != {int}:
+        if len(value) % width or set(map(type, value)) != {int}:
             return None
-        try:
-            out = np.array(value, dtype=np.int64)
-        except OverflowError:
+        if (out := _from_rows([value], len(value), np.int64)) is None:     # (one row: the flat list)
             return None
+        out = out.reshape(-1, width)
     else:
         return None
-    if out.size % width or (out.ndim == 2 and out.shape[1] != width):
-        return None
-    out = out.reshape(-1, width)
     if out.min() < 0 or out.max() >= vertex_count:
         return None
     return out
