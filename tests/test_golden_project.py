@@ -23,19 +23,7 @@ from softras.cli import main
 from softras.verification import golden
 
 from conftest import REPO
-
-TRIANGLE = {
-    "softras_scene": 1,
-    "width": 16, "height": 12,
-    "background": [0, 0, 0, 1],
-    "camera": {"projection": "orthographic", "left": 0, "right": 16, "bottom": 0, "top": 12,
-               "near": -1, "far": 1},
-    "nodes": [{
-        "name": "triangle",
-        "mesh": {"positions": [[1.3, 1.2, 0], [14.6, 2.1, 0], [6.2, 10.7, 0]],
-                 "colors": [[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1]]},
-    }],
-}
+from test_golden import TRIANGLE  # the same tiny scene in pixel units
 
 
 def state(folder: Path) -> dict:
@@ -79,7 +67,9 @@ def test_no_scenes_here_is_one_line_status_2_and_nothing_written(tmp_path, monke
 
 def test_no_module_resolves_a_default_folder_from_its_own_location():
     """Only the README demo scene is softras's own (``softras demo``); nothing
-    else in softras/ looks for scenes or golden images beside its source."""
+    else in softras/ looks for scenes or golden images beside its source.
+    (The kernels read their own source files, for numba's cache key:
+    `softras.kernels.draw._sources_stamp`, no user folder.)"""
     found = []
     for path in sorted((REPO / "softras").rglob("*.py")):
         source = path.read_text(encoding="utf-8")
@@ -87,7 +77,8 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
             if isinstance(node, ast.Name) and node.id == "__file__":
                 line = source.splitlines()[node.lineno - 1].strip()
                 found.append((str(path.relative_to(REPO)), line.split(" = ")[0]))
-    assert found == [("softras/cli.py", "DEFAULT_DEMO_SCENE")], found
+    assert found == [("softras/cli.py", "DEFAULT_DEMO_SCENE"), ("softras/kernels/draw.py",
+                     'for path in sorted(Path(__file__).resolve().parent.glob("*.py")):')], found
 
 
 @pytest.mark.gl
