@@ -35,8 +35,11 @@ The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes and depth as 24-bit integers (`softras.kernels.ops`).
 
 `unsupported(scene, ...)` says why a scene must take the general path (lines,
-lit shading, anisotropic textures, alpha-tested materials, other sample
-counts or clipping policies...).  ``front_face="cw"`` is drawn here as the
+flat and Phong shading, anisotropic textures, alpha-tested materials, other
+sample counts or clipping policies...).  Gouraud shading is drawn here: its
+lighting is per vertex (`softras.pipeline.render.gouraud_colors`, the
+stages' own function, in numpy), and the lit colours are interpolated as
+vertex colours are.  ``front_face="cw"`` is drawn here as the
 swapped cull mode (`softras.pipeline.setup.window_cull`).  A draw pays
 only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
@@ -75,6 +78,7 @@ from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texe
                                      _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import ops, setup, texture, vertex
+from softras.pipeline.render import gouraud_colors
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
@@ -113,7 +117,7 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
         material = draw.material
         if draw.mesh.primitive != "triangles":
             return f"{draw.path}: {draw.mesh.primitive}"
-        if material.shading != "unlit":
+        if material.shading not in ("unlit", "gouraud"):
             return f"{draw.path}: {material.shading} shading"
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
@@ -165,7 +169,10 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     material = draw.material
     textured = material.texture is not None
     vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
-    base = np.ascontiguousarray(vertex_colors * material.color)             # straight, per vertex
+    base = vertex_colors * material.color                                   # straight, per vertex
+    if material.shading == "gouraud":                                       # lit at the vertices
+        base = gouraud_colors(scene, draw, base)
+    base = np.ascontiguousarray(base)
     uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured
            else np.zeros((0, 2)))
     tris = Triangles(_scratch.take("tri_f", (n, _NF), np.float64), _scratch.take("tri_i", (n, _NI), np.int64),

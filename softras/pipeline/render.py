@@ -259,6 +259,19 @@ def resolve(job: Job, color: np.ndarray) -> np.ndarray:
                        output="uint8" if job.rgba8 else "float32")
 
 
+def gouraud_colors(scene: Scene, draw, base: np.ndarray) -> np.ndarray:
+    """Gouraud shading: Blinn-Phong (`softras.pipeline.fragment.blinn_phong`)
+    at each vertex of the draw's mesh, in world space, from the straight base
+    colours (V, 4) (vertex colour x material colour) -> (V, 4) straight lit
+    colours (alpha kept), which the rasterizer then interpolates like vertex
+    colours (the fast path takes them as its vertex colours)."""
+    world = vertex.world_positions(draw.mesh.positions, draw.world)
+    eye = np.linalg.inv(scene.camera.view)[:3, 3]
+    lit = fragment.blinn_phong(base[:, :3], world, vertex.world_normals(draw.mesh.normals, draw.world),
+                               eye, scene.lights, draw.material)
+    return np.concatenate([lit, base[:, 3:]], axis=1)
+
+
 def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: bool,
                  clipping: str | None, texture_fixed_point: bool, texture_filter=None,
                  texture_bounds: str | None = None, tie_rule: str = "left_bottom") -> np.ndarray:
@@ -315,9 +328,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
             world = vertex.world_positions(mesh.positions, draw.world)
             eye = np.linalg.inv(scene.camera.view)[:3, 3]
         if shading == "gouraud":
-            lit = fragment.blinn_phong(base[:, :3], world, vertex.world_normals(mesh.normals, draw.world),
-                                       eye, scene.lights, material)
-            base = np.concatenate([lit, base[:, 3:]], axis=1)
+            base = gouraud_colors(scene, draw, base)
 
         t = frags.tri
         centres = np.stack([frags.x + 0.5, frags.y + 0.5], axis=1)
