@@ -49,10 +49,14 @@ options, which scenes it applies to, whether the quick run includes it).
 Options a renderer does not know make a level "n/a" on that build, not an
 error.  `SCENES` are generated here: many small triangles (a tessellated,
 perspective-tilted vertex-coloured grid), few large ones, a trilinear
-textured floor, 4x MSAA, translucent layers blended "over"; the scaling
-sweeps vary triangles (1k to 1M) at 512^2 and pixels (256^2 to 2048^2) at
-about 2k triangles, gl level only, and fit ``time ~ n^k`` by least squares
-on log-log (k near 1 is linear).
+textured floor, 4x MSAA, translucent layers blended "over"; stand-ins for
+real content, gl level only (a lumpy scan-like sphere of 71k triangles lit
+with Phong and with Gouraud shading, a Gouraud mesh at 4x MSAA, a
+flat-shaded 6k mesh, a textured Phong model at 1024^2, an 8k-line
+wireframe: `lit_scene`, `lines_scene`); the scaling sweeps vary triangles
+(1k to 1M) at 512^2 and pixels (256^2 to 2048^2) at about 2k triangles, gl
+level only, and fit ``time ~ n^k`` by least squares on log-log (k near 1 is
+linear).
 
 The loader
 ----------
@@ -176,6 +180,52 @@ def blended_scene(side: int, layers: int = 8, cols: int = 8) -> dict:
             "nodes": nodes}
 
 
+def lit_scene(side: int, shading: str, segments: int, rings: int, *, samples: int = 1,
+              textured: bool = False, bumpy: bool = True) -> dict:
+    """A stand-in for a real model: a sphere of 2 * segments * (rings - 1)
+    triangles, lumpy like a scan (displaced along its normals by a noise
+    height map) unless ``bumpy`` is False, Blinn-Phong lit with ``shading``
+    by a point and a directional light, optionally checker-textured
+    (trilinear), at ``samples`` samples a pixel."""
+    material = {"shading": shading, "color": [0.85, 0.6, 0.4, 1], "ambient": 0.12, "diffuse": 0.8,
+                "specular": 0.5, "shininess": 32}
+    textures = {}
+    if bumpy:
+        textures["height"] = {"procedural": "noise", "size": [64, 64], "min_filter": "linear"}
+        material["displacement"] = {"texture": "height", "scale": 0.08}
+    if textured:
+        textures["checker"] = {"procedural": "checker", "size": [256, 256], "squares": 16,
+                               "min_filter": "linear_mipmap_linear", "mag_filter": "linear"}
+        material["texture"] = "checker"
+    return {"softras_scene": 1, "width": side, "height": side, "background": [0.05, 0.05, 0.08, 1],
+            "samples": samples, "textures": textures,
+            "camera": {"projection": "perspective", "fov_y": 40, "near": 0.5, "far": 20,
+                       "eye": [0, 0.6, 3.4], "target": [0, 0, 0]},
+            "lights": [{"type": "point", "position": [3, 3, 4], "color": [1, 1, 1]},
+                       {"type": "directional", "direction": [-1, -0.2, -0.5], "color": [0.25, 0.3, 0.5]}],
+            "nodes": [{"name": "model", "rotate": [20, 0, 1, 0],
+                       "mesh": {"procedural": "sphere", "segments": segments, "rings": rings},
+                       "material": material, "cull": "back"}]}
+
+
+def lines_scene(side: int, cols: int = 64) -> dict:
+    """A wireframe: the 2 * cols * (cols + 1) edges of a tilted cols x cols
+    grid as a line mesh, vertex-coloured."""
+    ticks = np.linspace(-1.2, 1.2, cols + 1)
+    xs, ys = np.meshgrid(ticks, ticks)
+    positions = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1)
+    index = np.arange(xs.size).reshape(cols + 1, cols + 1)
+    edges = np.concatenate([np.stack([index[:, :-1].ravel(), index[:, 1:].ravel()], axis=1),
+                            np.stack([index[:-1, :].ravel(), index[1:, :].ravel()], axis=1)])
+    colors = np.stack([(xs.ravel() + 1.2) / 2.4, (ys.ravel() + 1.2) / 2.4, np.full(xs.size, 0.8)], axis=1)
+    return {"softras_scene": 1, "width": side, "height": side, "background": [0, 0, 0, 1],
+            "camera": {"projection": "perspective", "fov_y": 50, "near": 0.1, "far": 100,
+                       "eye": [0, 0, 2.6], "target": [0, 0, 0]},
+            "nodes": [{"name": "wireframe", "rotate": [-30, 1, 0, 0],
+                       "mesh": {"primitive": "lines", "positions": positions.round(6).tolist(),
+                                "indices": edges.tolist(), "colors": colors.round(6).tolist()}}]}
+
+
 @dataclass(frozen=True)
 class BenchScene:
     name: str
@@ -194,6 +244,15 @@ def scenes(full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2
         BenchScene("floor_aniso16_512", floor_scene(512, anisotropy=16), quick=False),
         BenchScene("msaa4_24k_512", grid_scene(110, 512, samples=4)),
         BenchScene("blended_8x128_512", blended_scene(512)),
+        # Stand-ins for real content (gl level only: the supersampled truth
+        # of a lit 70k-triangle scene would cost minutes).
+        BenchScene("scan_phong_71k_512", lit_scene(512, "phong", 256, 140), levels=False),
+        BenchScene("scan_gouraud_71k_512", lit_scene(512, "gouraud", 256, 140), levels=False),
+        BenchScene("gouraud_msaa4_24k_512", lit_scene(512, "gouraud", 128, 95, samples=4), levels=False),
+        BenchScene("flat_6k_512", lit_scene(512, "flat", 64, 48, bumpy=False), levels=False),
+        BenchScene("textured_phong_8k_1024", lit_scene(1024, "phong", 96, 48, textured=True, bumpy=False),
+                   levels=False),
+        BenchScene("lines_8k_512", lines_scene(512), levels=False),
     ]
     for triangles in (1_000, 10_000, 100_000, 1_000_000):
         if triangles <= max_triangles:

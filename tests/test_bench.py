@@ -35,6 +35,18 @@ def test_benchmark_set_covers_the_issue_and_scales():
     assert [s.scene["width"] for s in pixels] == [256, 512, 1024, 2048]
     assert softras.load_scene(bench.floor_scene(64)).textures["checker"].min_filter == "linear_mipmap_linear"
     assert all(n["blend"] == "over" for n in bench.blended_scene(64)["nodes"])
+    # Stand-ins for real content: what each one uses.
+    loaded = {s.name: softras.load_scene(s.scene) for s in full if s.name in quick and not s.levels
+              and not s.series}
+    uses = {name: (sum(len(d.mesh.indices) for d in scene.draws), scene.width, scene.samples,
+                   scene.draws[0].material.shading, scene.draws[0].material.texture is not None,
+                   scene.draws[0].mesh.primitive) for name, scene in loaded.items()}
+    assert uses == {"scan_phong_71k_512": (71168, 512, 1, "phong", False, "triangles"),
+                    "scan_gouraud_71k_512": (71168, 512, 1, "gouraud", False, "triangles"),
+                    "gouraud_msaa4_24k_512": (24064, 512, 4, "gouraud", False, "triangles"),
+                    "flat_6k_512": (6016, 512, 1, "flat", False, "triangles"),
+                    "textured_phong_8k_1024": (9024, 1024, 1, "phong", True, "triangles"),
+                    "lines_8k_512": (8320, 512, 1, "unlit", False, "lines")}, uses
 
 
 def test_level_table_one_line_per_level_and_applicability():
