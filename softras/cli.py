@@ -1004,6 +1004,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+COMPILE_NOTICE = ("softras: compiling the rendering kernels for this machine (the first run only: "
+                  "numba keeps them in its cache; this can take a few minutes)...")
+_compile_notice_installed = False
+
+
+def announce_compilation(stream=None, *, only_on_terminal: bool = True) -> None:
+    """Print `COMPILE_NOTICE` on ``stream`` (default stderr) the first time,
+    in this process, that numba compiles a kernel -- a cache miss: a fresh
+    clone, an edited kernel, a new numba -- so the first run on a machine does
+    not sit silent for minutes.  A run that loads every kernel from the cache
+    prints nothing.  Installed once per process (numba's ``numba:compile``
+    event, which numba triggers only when it compiles, not when it loads);
+    with ``only_on_terminal`` it prints only when the stream is a terminal, so
+    captured output (tests, pipes, CI logs parsed by tools) is never changed."""
+    global _compile_notice_installed
+    if _compile_notice_installed:
+        return
+    from numba.core import event
+
+    class _Notice(event.Listener):
+        said = False
+
+        def on_start(self, ev):
+            out = stream if stream is not None else sys.stderr
+            if not self.said and (not only_on_terminal or out.isatty()):
+                print(COMPILE_NOTICE, file=out, flush=True)
+            self.said = True
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", _Notice())
+    _compile_notice_installed = True
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``softras`` command line.
 
@@ -1031,6 +1066,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from softras.scene.imageio import ImageError
 
+    announce_compilation()
     try:
         return args.func(args)
     except (CLIError, ImageError) as error:
