@@ -556,3 +556,18 @@ def test_texture_table_cache_limit_is_bit_identical():
     general, fast = both_paths(scene)
     assert_same(general, fast, "20 textures")
     assert_same(general, render_scene(scene, precision="gl"), "20 textures, again")
+
+
+def test_the_sample_memory_limit_counts_each_paths_bytes(monkeypatch):
+    """The compiled path holds 8 bytes a sample (RGBA8 and depth), the stages
+    32 (float64 RGBA): under one limit the compiled path renders pictures the
+    stages refuse (4096^2 at 4x: 512 MiB here, 2 GiB there)."""
+    from softras.pipeline import render as stage_render
+    scene = softras.load_scene(random_scene(0, width=64, height=64))
+    monkeypatch.setattr(stage_render, "MAX_SAMPLE_BYTES", 64 * 64 * 4 * 16)
+    assert render_scene(scene, samples=4).shape == (64, 64, 4)
+    with pytest.raises(ValueError, match="GiB of sample colour"):
+        render_scene(scene, samples=4, fast_path=False)
+    monkeypatch.setattr(stage_render, "MAX_SAMPLE_BYTES", 64 * 64 * 4 * 8 - 1)
+    with pytest.raises(ValueError, match="GiB of sample colour"):
+        render_scene(scene, samples=4)

@@ -78,12 +78,15 @@ from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texe
                                      _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import ops, setup, texture, vertex
-from softras.pipeline.render import gouraud_colors
+from softras.pipeline.render import check_sample_memory, gouraud_colors
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
 # Sample counts the fast path renders (the positions are the pipeline's).
 FAST_SAMPLES = (1, 4)
+# Bytes a sample holds here: RGBA8 colour and a 24-bit depth in an int32
+# (the stages hold 32 for the colour alone: 4096^2 at 4x fits here, not there).
+SAMPLE_BYTES = 4 + 4
 
 # A draw's sample positions: offsets (S, 2) int64 in raster units
 # (`softras.pipeline.setup.sample_offsets`, gl) and positions (S, 2) float64
@@ -142,6 +145,7 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     call (for a caller that copies it at once; saves the page faults of a
     fresh buffer).
     """
+    check_sample_memory(scene, len(positions), SAMPLE_BYTES)
     offsets, _ = setup.sample_offsets(positions, "gl")
     shape = (scene.height, scene.width, len(positions))
     depth = _scratch.take("depth", shape, np.int32)

@@ -29,8 +29,9 @@ CENTER_POSITION = sampling.GL_CENTER
 # (each through every stage) into slices of the per-sample colour buffer.
 MAX_PASS_SAMPLES = sampling.MAX_PASS_SAMPLES
 sample_passes = sampling.sample_passes
-# Largest per-sample colour buffer (H x W x S x 4 float64) render_scene makes.
+# Largest per-sample buffers a render makes (`check_sample_memory`).
 MAX_SAMPLE_BYTES = 1 << 30
+SAMPLE_BYTES = 4 * 8        # the stages' per-sample colour: RGBA float64 (`render_samples`)
 FRAMEBUFFERS = ("rgba8", "rgba32f")
 
 
@@ -218,17 +219,23 @@ class Job:
         if texture_bounds is not None and texture_filter is not None:
             raise ValueError("texture_bounds bounds GL's filters: it cannot be combined with texture_filter")
         positions = sample_positions(samples or scene.samples, pattern, seed)
-        n_samples = len(positions)
-        size = scene.width * scene.height * n_samples * 4 * 8
-        if size > MAX_SAMPLE_BYTES:
-            raise ValueError(f"{scene.width}x{scene.height} pixels x {n_samples} samples need "
-                             f"{size / 2**30:.1f} GiB of sample colour (limit "
-                             f"{MAX_SAMPLE_BYTES / 2**30:.0f} GiB): use fewer samples or a smaller image")
         return cls(precision=precision, positions=positions,
                    gl_pattern=pattern is None or (isinstance(pattern, str) and pattern == "gl"),
                    rgba8=framebuffer == "rgba8", resolve_filter=resolve_filter, clipping=clipping,
                    texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
                    texture_bounds=texture_bounds, tie_rule=tie_rule)
+
+
+def check_sample_memory(scene: Scene, n_samples: int, bytes_per_sample: int) -> None:
+    """Refuse (ValueError, one line) a render whose per-sample buffers,
+    ``bytes_per_sample`` for each of the picture's samples, would exceed
+    MAX_SAMPLE_BYTES: `SAMPLE_BYTES` for the stages' float64 colour, far less
+    for the compiled path's bytes (`softras.kernels.draw.SAMPLE_BYTES`)."""
+    size = scene.width * scene.height * n_samples * bytes_per_sample
+    if size > MAX_SAMPLE_BYTES:
+        raise ValueError(f"{scene.width}x{scene.height} pixels x {n_samples} samples need "
+                         f"{size / 2**30:.1f} GiB of sample colour (limit "
+                         f"{MAX_SAMPLE_BYTES / 2**30:.0f} GiB): use fewer samples or a smaller image")
 
 
 def render_samples(scene: Scene, job: Job) -> np.ndarray:
@@ -237,6 +244,7 @@ def render_samples(scene: Scene, job: Job) -> np.ndarray:
     rgba32f in gl precision, float64 in exact (`_render_pass`, in passes of
     at most MAX_PASS_SAMPLES samples)."""
     n_samples = len(job.positions)
+    check_sample_memory(scene, n_samples, SAMPLE_BYTES)
     color = None
     for start, stop in sample_passes(n_samples):
         part = _render_pass(scene, job.positions[start:stop], precision=job.precision, rgba8=job.rgba8,
