@@ -21,6 +21,7 @@ checks:
 from __future__ import annotations
 
 import base64
+import importlib.util
 import json
 import os
 import statistics
@@ -34,6 +35,12 @@ import pytest
 import softras
 from softras import cli
 from softras.scene import SceneError, meshfiles, scene_from_dict
+
+from conftest import REPO
+
+_spec = importlib.util.spec_from_file_location("make_gltf_scenes", REPO / "scripts" / "make_gltf_scenes.py")
+make_gltf_scenes = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(make_gltf_scenes)
 
 # --------------------------------------------------------------------------- writers
 
@@ -148,7 +155,9 @@ def obj_reference(text):
 
 def gltf_document(primitives, nodes, *, index_bits=16, interleaved=True, colors_u8=True, glb=True,
                   external_bin=None):
-    """A glTF 2.0 document and its one buffer, built by hand.
+    """A glTF 2.0 document and its one buffer, built by hand with
+    scripts/make_gltf_scenes.py's `GltfWriter`, left apart so that a test
+    can break them before writing.
 
     ``primitives``: list of dicts with positions (N, 3), indices (M, 3), and
     optional normals, uvs (glTF convention: v = 0 at the top), colors (N, 4)
@@ -157,77 +166,19 @@ def gltf_document(primitives, nodes, *, index_bits=16, interleaved=True, colors_
     TEXCOORD_0 share one bufferView with a byteStride of 32 bytes; COLOR_0 is
     normalized uint8 (or float32). Indices are uint16 or uint32.
     """
-    blob = bytearray()
-    views, accessors, meshes = [], [], []
-
-    def add_view(data: bytes, stride=None, target=None):
-        while len(blob) % 4:
-            blob.append(0)
-        view = {"buffer": 0, "byteOffset": len(blob), "byteLength": len(data)}
-        if stride:
-            view["byteStride"] = stride
-        if target:
-            view["target"] = target
-        blob.extend(data)
-        views.append(view)
-        return len(views) - 1
-
-    def add_accessor(view, offset, component, kind, count, **extra):
-        accessors.append({"bufferView": view, "byteOffset": offset, "componentType": component,
-                          "type": kind, "count": count, **extra})
-        return len(accessors) - 1
-
+    writer = make_gltf_scenes.GltfWriter()
     for prim in primitives:
-        positions = np.asarray(prim["positions"], np.float32)
-        n = len(positions)
-        attributes = {}
-        normals, uvs = prim.get("normals"), prim.get("uvs")
-        if interleaved:
-            record = np.zeros(n, [("p", "<f4", 3), ("n", "<f4", 3), ("t", "<f4", 2)])
-            record["p"] = positions
-            if normals is not None:
-                record["n"] = normals
-            if uvs is not None:
-                record["t"] = uvs
-            view = add_view(record.tobytes(), stride=32, target=34962)
-            attributes["POSITION"] = add_accessor(view, 0, 5126, "VEC3", n, min=positions.min(0).tolist(),
-                                                  max=positions.max(0).tolist())
-            if normals is not None:
-                attributes["NORMAL"] = add_accessor(view, 12, 5126, "VEC3", n)
-            if uvs is not None:
-                attributes["TEXCOORD_0"] = add_accessor(view, 24, 5126, "VEC2", n)
-        else:
-            attributes["POSITION"] = add_accessor(add_view(positions.tobytes()), 0, 5126, "VEC3", n,
-                                                  min=positions.min(0).tolist(), max=positions.max(0).tolist())
-            if normals is not None:
-                attributes["NORMAL"] = add_accessor(add_view(np.asarray(normals, "<f4").tobytes()), 0, 5126, "VEC3", n)
-            if uvs is not None:
-                attributes["TEXCOORD_0"] = add_accessor(add_view(np.asarray(uvs, "<f4").tobytes()), 0, 5126, "VEC2", n)
-        if prim.get("colors") is not None:
-            colors = np.asarray(prim["colors"])
-            if colors_u8:
-                attributes["COLOR_0"] = add_accessor(add_view(np.round(colors * 255).astype(np.uint8).tobytes(), stride=4),
-                                                     0, 5121, "VEC4", n, normalized=True)
-            else:
-                attributes["COLOR_0"] = add_accessor(add_view(colors.astype("<f4").tobytes()), 0, 5126, "VEC4", n)
-        indices = np.asarray(prim["indices"]).reshape(-1)
-        index_type, component = ("<u2", 5123) if index_bits == 16 else ("<u4", 5125)
-        index_view = add_view(indices.astype(index_type).tobytes(), target=34963)
-        primitive = {"attributes": attributes, "indices": add_accessor(index_view, 0, component, "SCALAR", len(indices))}
-        meshes.append({"primitives": [primitive]})
-    while len(blob) % 4:
-        blob.append(0)
-    gltf = {"asset": {"version": "2.0", "generator": "tests/test_mesh_files.py"},
-            "scene": 0, "scenes": [{"nodes": list(range(len(nodes)))}],
-            "nodes": [{"mesh": m, **transform} for m, transform in nodes],
-            "meshes": meshes, "accessors": accessors, "bufferViews": views,
-            "buffers": [{"byteLength": len(blob)}]}
+        writer.mesh(writer.primitive(prim["positions"], prim["indices"], normals=prim.get("normals"),
+                                     uvs=prim.get("uvs"), colors=prim.get("colors"),
+                                     color_code="u1" if colors_u8 else "f4", interleaved=interleaved,
+                                     index_bits=index_bits))
+    writer.scene(*(writer.node(mesh=mesh, **transform) for mesh, transform in nodes))
+    blob = bytes(writer.blob) + b"\0" * (-len(writer.blob) % 4)
+    gltf = dict(writer.doc, buffers=[{"byteLength": len(blob)}])
     if not glb:
-        if external_bin:
-            gltf["buffers"][0]["uri"] = external_bin
-        else:
-            gltf["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(bytes(blob)).decode()
-    return gltf, bytes(blob)
+        gltf["buffers"][0]["uri"] = external_bin or (
+            "data:application/octet-stream;base64," + base64.b64encode(blob).decode())
+    return gltf, blob
 
 
 def glb_bytes(gltf: dict, blob: bytes) -> bytes:
