@@ -151,7 +151,7 @@ def _features(draw, n_lights: int) -> tuple[str, ...]:
         if mat.shading != "phong":
             raise NotImplementedError(f"glref: {draw.path}: normal and bump maps need phong shading")
         defines.append("NORMAL_MAP" if mat.normal_map is not None else "BUMP_MAP")
-    if getattr(mat, "alpha_cutoff", None) is not None:
+    if mat.alpha_cutoff is not None:
         if draw.mesh.primitive != "triangles":
             raise NotImplementedError(f"glref: {draw.path}: alpha test on {draw.mesh.primitive}")
         defines.append("ALPHA_TEST")
@@ -346,7 +346,7 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
     context lacks what the scene needs (`unsupported`), `NotImplementedError`
     for scene features glref does not draw yet, RuntimeError on a GL error.
     """
-    from softras.scene import FRAMEBUFFERS, load_scene, ordered_draws  # the softras module glref may import
+    from softras.scene import FRAMEBUFFERS, FRONT_FACES, load_scene, ordered_draws  # the softras module glref may import
     if not hasattr(scene, "draws"):
         scene = load_scene(scene)
     framebuffer = framebuffer or getattr(scene, "framebuffer", "rgba8")
@@ -392,7 +392,7 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
                   float(bg[3]), depth=1.0)
 
         front_face = scene.front_face
-        if front_face not in ("ccw", "cw"):
+        if front_face not in FRONT_FACES:
             raise ValueError(f"glref: unknown front_face {front_face!r}")
         ctx.front_face = front_face             # glFrontFace: which winding culling calls front
         ctx.line_width = 1.0

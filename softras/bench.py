@@ -69,6 +69,7 @@ cost beyond reading the JSON at all.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -370,18 +371,27 @@ E2E_MIN_PAIRS = 21
 E2E_BUDGET = 1.5
 
 
+@contextlib.contextmanager
+def _scene_file(scene_dict: dict):
+    """The scene written to a temporary JSON file (its path), removed afterwards."""
+    handle, path = tempfile.mkstemp(suffix=".json", prefix="softras-bench-")
+    try:
+        with os.fdopen(handle, "w") as out:
+            json.dump(scene_dict, out)
+        yield path
+    finally:
+        os.unlink(path)
+
+
 def _file_times(scene_dict: dict, options: dict, runs: int) -> tuple[float, float]:
     """Median seconds from the scene file to the image: (softras, glref),
     interleaved pairs (``runs`` of them, more up to `E2E_MIN_PAIRS` when they
     fit in `E2E_BUDGET`)."""
     import softras
-    handle, path = tempfile.mkstemp(suffix=".json", prefix="softras-bench-")
-    try:
-        with os.fdopen(handle, "w") as out:
-            json.dump(scene_dict, out)
-        backends = {"soft": options, "gl": {"backend": "gl"}}
-        times = {name: [] for name in backends}
-        run, begin = 0, None
+    backends = {"soft": options, "gl": {"backend": "gl"}}
+    times = {name: [] for name in backends}
+    run, begin = 0, None
+    with _scene_file(scene_dict) as path:
         while run <= runs or (run <= E2E_MIN_PAIRS and time.perf_counter() - begin < E2E_BUDGET):
             for name, render_options in backends.items():
                 start = time.perf_counter()
@@ -391,9 +401,7 @@ def _file_times(scene_dict: dict, options: dict, runs: int) -> tuple[float, floa
             if not run:
                 begin = time.perf_counter()
             run += 1
-        return statistics.median(times["soft"]), statistics.median(times["gl"])
-    finally:
-        os.unlink(path)
+    return statistics.median(times["soft"]), statistics.median(times["gl"])
 
 
 LOADER_GRIDS = (110, 224)     # explicit-array grids of the loader figure: 24k and 100k triangles
@@ -402,11 +410,11 @@ LOADER_RUNS = 9
 
 def explicit_grid_scene(cols: int) -> dict:
     """`grid_scene` with its mesh written out as explicit arrays (positions,
-    indices, colours), as a user's exported model arrives: the scene of the
-    loader figure."""
-    from softras.scene import meshes
+    indices, colours: the procedural grid as loaded), as a user's exported
+    model arrives: the scene of the loader figure."""
+    import softras
     scene = grid_scene(cols, 512)
-    mesh = meshes.grid(cols, cols, (2.5, 2.5), [[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]])
+    mesh = softras.load_scene(scene).draws[0].mesh
     scene["nodes"][0]["mesh"] = {"positions": mesh.positions.tolist(), "indices": mesh.indices.tolist(),
                                  "colors": np.clip(mesh.colors, 0.0, 1.0).tolist()}
     return scene
@@ -418,11 +426,8 @@ def loader_times(cols: int, runs: int = LOADER_RUNS) -> dict:
     scene layer's cost beyond reading the JSON: validation and conversion to
     arrays)."""
     import softras
-    handle, path = tempfile.mkstemp(suffix=".json", prefix="softras-bench-")
-    try:
-        with os.fdopen(handle, "w") as out:
-            json.dump(explicit_grid_scene(cols), out)
-        json_s, load_s = [], []
+    json_s, load_s = [], []
+    with _scene_file(explicit_grid_scene(cols)) as path:
         for _ in range(runs):
             start = time.perf_counter()
             with open(path, encoding="utf-8") as file:
@@ -431,11 +436,10 @@ def loader_times(cols: int, runs: int = LOADER_RUNS) -> dict:
             start = time.perf_counter()
             scene = softras.load_scene(path)
             load_s.append(time.perf_counter() - start)
-        json_median, load_median = statistics.median(json_s), statistics.median(load_s)
-        return {"triangles": len(scene.draws[0].mesh.indices), "megabytes": os.path.getsize(path) / 1e6,
-                "json_seconds": json_median, "load_seconds": load_median, "ratio": load_median / json_median}
-    finally:
-        os.unlink(path)
+        megabytes = os.path.getsize(path) / 1e6
+    json_median, load_median = statistics.median(json_s), statistics.median(load_s)
+    return {"triangles": len(scene.draws[0].mesh.indices), "megabytes": megabytes,
+            "json_seconds": json_median, "load_seconds": load_median, "ratio": load_median / json_median}
 
 
 def fit_exponent(sizes, seconds) -> float:

@@ -284,7 +284,7 @@ def _compare_scene(scene_path: str, args: argparse.Namespace, out_dir: str | Non
     gl_name = _gl_description()
     from softras.verification.verifier import scene_tolerance
 
-    result = _compare(soft, gl, _tolerance(args, scene_tolerance(scene_path, scene)[0]))
+    result = _compare(soft, gl, _tolerance(args, scene_tolerance(scene)[0]))
 
     outputs: list[Path] = _write_maps(result, targets)
     if folder is not None:
@@ -350,19 +350,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _write_golden_failure(folder: Path, result) -> Path:
-    """Write golden / gl / soft images and diff heat maps of a failed scene."""
+    """Write golden / gl / soft images and diff heat maps of a failed scene
+    (`softras.verification.golden.failure_images`)."""
     from softras.scene.imageio import write_png_atomic
-    from softras.verification.metrics import compare
+    from softras.verification.golden import failure_images
 
     target = folder / Path(result.golden).stem
     target.mkdir(parents=True, exist_ok=True)
-    images = result.images
-    for name, image in images.items():
+    for name, image in failure_images(result).items():
         write_png_atomic(target / f"{name}.png", image)
-    if "golden" in images:
-        for name in ("gl", "soft"):
-            if name in images:
-                write_png_atomic(target / f"diff_{name}.png", compare(images[name], images["golden"]).diff_image)
     return target
 
 

@@ -69,7 +69,7 @@ class SoftrasQualityWarning(UserWarning):
 def pytest_addoption(parser):
     group = parser.getgroup("softras", "softras: conformance checks and golden images")
     group.addoption("--softras-scenes", action="append", default=[], metavar="DIR",
-                    help="collect the scene files (*.json) of DIR as test items, one conformance check "
+                    help="collect the scene files (*.json, *.gltf, *.glb) of DIR as test items, one conformance check "
                          "each (repeatable; DIR is added to the paths to collect)")
     group.addoption("--softras-profile", choices=_PROFILES, default=None,
                     help="verification profile of the conformance checks (default: ini softras_profile, "
@@ -84,7 +84,7 @@ def pytest_addoption(parser):
                     help=f"golden folder of every golden check (default: ini softras_golden_dir, else "
                          f"{GOLDEN_DIR}/ beside each test module)")
     parser.addini("softras_scenes", type="paths", default=[],
-                  help="folders whose scene files (*.json) are collected as conformance test items "
+                  help="folders whose scene files (*.json, *.gltf, *.glb) are collected as conformance test items "
                        "when pytest visits them (relative to the ini file)")
     parser.addini("softras_profile", default="auto", help="verification profile: auto, strict or spec")
     parser.addini("softras_results", default="",
@@ -270,13 +270,7 @@ def _golden(item, scene, *, golden_dir=None, name=None):
     if result.failures == [golden.NO_GOLDEN]:
         pytest.fail(f"softras golden: no golden image {golden_file} for scene {scene}: run pytest with "
                     f"--softras-update-golden to write it", pytrace=False)
-    images = dict(result.images)
-    if "golden" in images:
-        from softras.verification.metrics import compare
-
-        for other in ("gl", "soft"):
-            if other in images and images[other].shape == images["golden"].shape:
-                images[f"diff_{other}"] = compare(images[other], images["golden"]).diff_image
+    images = golden.failure_images(result)
     where = ""
     if images:
         pictures = _picture_dir(item, scene.stem)
@@ -354,10 +348,12 @@ def pytest_terminal_summary(terminalreporter):
 
 
 def pytest_collect_file(file_path, parent):
-    if file_path.suffix != ".json":
-        return None
     folders = parent.config.stash.get(_SCENE_DIRS, [])
-    if file_path.resolve().parent in folders:
+    if not folders or file_path.resolve().parent not in folders:
+        return None                    # (softras itself is imported only for a scene folder)
+    from softras.scene.parse import SCENE_SUFFIXES
+
+    if file_path.name.endswith(SCENE_SUFFIXES):
         return SceneFile.from_parent(parent, path=file_path)
     return None
 

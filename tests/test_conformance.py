@@ -111,13 +111,13 @@ def test_k_is_a_substring_or_a_glob(tmp_path):
 
 def test_tolerance_is_the_scenes_own_else_feature_defaults(tmp_path):
     own = write_scene(tmp_path, "own", dict(TRIANGLE, tolerance={"threshold": 5}))
-    tolerance, source = conformance.scene_tolerance(own, softras.load_scene(own))
+    tolerance, source = conformance.scene_tolerance(softras.load_scene(own))
     assert source == "scene" and tolerance["threshold"] == 5 and tolerance["max_bad_fraction"] == 0.001
     plain = write_scene(tmp_path, "plain", TRIANGLE)
-    tolerance, source = conformance.scene_tolerance(plain, softras.load_scene(plain))
+    tolerance, source = conformance.scene_tolerance(softras.load_scene(plain))
     assert tolerance == conformance.FEATURE_TOLERANCES["base"] and source == "defaults for base"
     msaa = write_scene(tmp_path, "msaa", dict(TRIANGLE, samples=4))
-    tolerance, source = conformance.scene_tolerance(msaa, softras.load_scene(msaa))
+    tolerance, source = conformance.scene_tolerance(softras.load_scene(msaa))
     assert tolerance["max_bad_fraction"] == 0.002 and source == "defaults for base, msaa"
 
 

@@ -25,7 +25,7 @@ def test_soft_matches_gl(path, tmp_path):
     scene = softras.load_scene(path)
     soft = softras.render(scene, precision="gl")
     gl = softras.render(scene, backend="gl")
-    result = softras.compare(soft, gl, **scene_tolerance(path, scene)[0])   # the one set of defaults
+    result = softras.compare(soft, gl, **scene_tolerance(scene)[0])   # the one set of defaults
     if not result.passed:
         write_failure_images(tmp_path, soft=soft, gl=gl, diff=result.diff_image)
         pytest.fail(f"{path.name}: {result.summary()} (images in {tmp_path})")

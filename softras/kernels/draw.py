@@ -37,7 +37,7 @@ bytes and depth as 24-bit integers (`softras.kernels.ops`).
 `unsupported(scene, ...)` says why a scene must take the general path (lines,
 flat and Phong shading, anisotropic textures, alpha-tested materials, other
 sample counts or clipping policies...).  Gouraud shading is drawn here: its
-lighting is per vertex (`softras.pipeline.render.gouraud_colors`, the
+lighting is per vertex (`softras.pipeline.render.vertex_base_colors`, the
 stages' own function, in numpy), and the lit colours are interpolated as
 vertex colours are.  ``front_face="cw"`` is drawn here as the
 swapped cull mode (`softras.pipeline.setup.window_cull`).  A draw pays
@@ -78,7 +78,7 @@ from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texe
                                      _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import ops, setup, texture, vertex
-from softras.pipeline.render import check_sample_memory, gouraud_colors
+from softras.pipeline.render import check_sample_memory, vertex_base_colors
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
@@ -124,7 +124,7 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
             return f"{draw.path}: {material.shading} shading"
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
-        if getattr(material, "alpha_cutoff", None) is not None:
+        if material.alpha_cutoff is not None:
             return f"{draw.path}: alpha test (alpha_cutoff)"
         if material.texture is not None:
             tex = scene.textures[material.texture]
@@ -172,11 +172,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     n_threads = numba.get_num_threads()
     material = draw.material
     textured = material.texture is not None
-    vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
-    base = vertex_colors * material.color                                   # straight, per vertex
-    if material.shading == "gouraud":                                       # lit at the vertices
-        base = gouraud_colors(scene, draw, base)
-    base = np.ascontiguousarray(base)
+    base = np.ascontiguousarray(vertex_base_colors(scene, draw))            # straight, per vertex
     uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured
            else np.zeros((0, 2)))
     tris = Triangles(_scratch.take("tri_f", (n, _NF), np.float64), _scratch.take("tri_i", (n, _NI), np.int64),

@@ -267,12 +267,21 @@ def resolve(job: Job, color: np.ndarray) -> np.ndarray:
                        output="uint8" if job.rgba8 else "float32")
 
 
-def gouraud_colors(scene: Scene, draw, base: np.ndarray) -> np.ndarray:
-    """Gouraud shading: Blinn-Phong (`softras.pipeline.fragment.blinn_phong`)
-    at each vertex of the draw's mesh, in world space, from the straight base
-    colours (V, 4) (vertex colour x material colour) -> (V, 4) straight lit
-    colours (alpha kept), which the rasterizer then interpolates like vertex
-    colours (the fast path takes them as its vertex colours)."""
+def vertex_colors(mesh) -> np.ndarray:
+    """A mesh's straight vertex colours (V, 4): its own, or opaque white."""
+    return mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
+
+
+def vertex_base_colors(scene: Scene, draw) -> np.ndarray:
+    """The straight colours (V, 4) a triangle draw carries per vertex: vertex
+    colour x material colour, and for Gouraud shading that lit at each vertex
+    (`softras.pipeline.fragment.blinn_phong` in world space, alpha kept),
+    which the rasterizer then interpolates like any vertex colour (the fast
+    path takes these as its vertex colours).  Flat and Phong shading light
+    later, from these unlit colours."""
+    base = vertex_colors(draw.mesh) * draw.material.color
+    if draw.material.shading != "gouraud":
+        return base
     world = vertex.world_positions(draw.mesh.positions, draw.world)
     eye = np.linalg.inv(scene.camera.view)[:3, 3]
     lit = fragment.blinn_phong(base[:, :3], world, vertex.world_normals(draw.mesh.normals, draw.world),
@@ -302,13 +311,12 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         mesh = draw.mesh
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
         clip_pos = vertex.to_clip(mesh.positions, mvp, precision)
-        vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
         if mesh.primitive == "lines":
             if (draw.material.texture is not None or draw.material.shading != "unlit"
                     or draw.material.alpha_cutoff is not None):
                 raise NotImplementedError(f"{draw.path}: softras draws lines unlit, untextured, "
                                           f"without alpha test only")
-            lf = lines.line_fragments(clip_pos, mesh.indices, width, height, values=vertex_colors,
+            lf = lines.line_fragments(clip_pos, mesh.indices, width, height, values=vertex_colors(mesh),
                                       precision=precision,
                                       sample_positions=positions, policy=policy)
             if len(lf):
@@ -330,13 +338,11 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
 
         source, corners = corner_values(clipped, tris, mesh)
         material = draw.material
-        base = vertex_colors * material.color                  # straight, per vertex
+        base = vertex_base_colors(scene, draw)                 # straight, per vertex
         shading = material.shading
-        if shading != "unlit":
+        if shading in ("flat", "phong"):                       # (Gouraud is lit already)
             world = vertex.world_positions(mesh.positions, draw.world)
             eye = np.linalg.inv(scene.camera.view)[:3, 3]
-        if shading == "gouraud":
-            base = gouraud_colors(scene, draw, base)
 
         t = frags.tri
         centres = np.stack([frags.x + 0.5, frags.y + 0.5], axis=1)

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from softras.scene.model import FRONT_FACES
+
 SUBPIXEL_BITS = 8
 SUBPIXEL_ONE = 1 << SUBPIXEL_BITS   # 256 raster units per pixel in gl precision
 
@@ -142,9 +144,6 @@ def edge_equations(xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, ...]:
 #: that (two triangles sharing an edge see it with opposite (A, B)).
 #: "left_bottom" is llvmpipe's (D3D's top-left rule seen with y up).
 TIE_RULES = {"left_bottom": (1, 1), "right_bottom": (-1, 1), "left_top": (1, -1), "right_top": (-1, -1)}
-
-
-FRONT_FACES = ("ccw", "cw")
 
 
 def window_cull(cull: str, front_face: str = "ccw") -> str:

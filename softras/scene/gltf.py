@@ -44,8 +44,9 @@ import numpy as np
 
 from softras.scene import gltf_files, meshes, meshfiles, texels
 from softras.scene.fileio import BadFile, check_counts
+from softras.scene.gltf_files import number, numbers
 from softras.scene.meshes import MeshArrays
-from softras.scene.model import (DEFAULT_TOLERANCE, MAX_NODE_DEPTH, MAX_SIDE, MAX_TEXELS, Camera, Draw, Light,
+from softras.scene.model import (DEFAULT_TOLERANCE, MAX_SIDE, MAX_TEXELS, Camera, Draw, Light,
                                  Material, Scene, SceneError, Texture, _readonly)
 from softras.scene.transforms import look_at_matrix, orthographic_matrix, perspective_matrix
 
@@ -153,20 +154,6 @@ def default_rig(view: np.ndarray) -> tuple[Light, ...]:
 # --------------------------------------------------------------------------- checks
 
 
-def _number(value, where: str, lo: float = -math.inf, hi: float = math.inf) -> float:
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-        raise BadFile(f"{where}: expected a number, got {value!r}")
-    if not lo <= value <= hi:
-        raise BadFile(f"{where}: {value:g} is out of range [{lo:g}, {hi:g}]")
-    return float(value)
-
-
-def _numbers(value, count: int, where: str, lo: float = -math.inf, hi: float = math.inf) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != count:
-        raise BadFile(f"{where}: expected {count} numbers")
-    return np.array([_number(v, f"{where}[{i}]", lo, hi) for i, v in enumerate(value)])
-
-
 def _refuse_extensions(entry: dict, where: str | None, allowed=()) -> dict:
     """The entry's ``extensions`` object; any extension not in ``allowed`` is refused."""
     place = "extensions" if where is None else f"{where}.extensions"        # None: the document's own
@@ -203,7 +190,7 @@ class _Builder:
         index = doc.get("scene", 0)
         scene = self.file.item("scenes", index, "scene")
         _refuse_extensions(scene, f"scenes[{index}]")
-        nodes = self.walk(scene.get("nodes", []), f"scenes[{index}].nodes")
+        nodes = self.file.walk(scene.get("nodes", []), f"scenes[{index}].nodes")
         draws, camera, lights, budget = [], None, [], [meshes.MAX_TRIANGLES]
         for n, world in nodes:
             node = self.doc["nodes"][n]
@@ -229,37 +216,6 @@ class _Builder:
                      description=f"glTF scene {os.path.basename(self.path)}",
                      render_order="opaque_then_sorted" if blended else "scene")
 
-    def walk(self, roots, where: str) -> list[tuple[int, np.ndarray]]:
-        """(node index, world matrix) depth-first, parents before children, in list order."""
-        found, seen = [], set()
-
-        def visit(index, parent, depth, place):
-            if depth > MAX_NODE_DEPTH:
-                raise BadFile(f"{place}: nodes nested more than {MAX_NODE_DEPTH} deep")
-            node = self.file.item("nodes", index, place)
-            if index in seen:
-                raise BadFile(f"{place}: nodes[{index}] is reached twice (the node hierarchy must be a forest)")
-            seen.add(index)
-            for key, what in (("skin", "skins"), ("weights", "morph target weights")):
-                if key in node:
-                    raise BadFile(f"nodes[{index}].{key}: {what} are not supported")
-            with np.errstate(over="ignore", invalid="ignore"):
-                world = parent @ gltf_files.node_matrix(node, f"nodes[{index}]")
-            if not np.isfinite(world).all():
-                raise BadFile(f"nodes[{index}]: the world matrix overflows")
-            found.append((index, world))
-            children = node.get("children", [])
-            if not isinstance(children, list):
-                raise BadFile(f"nodes[{index}].children: expected a list of node indices")
-            for child in children:
-                visit(child, world, depth + 1, f"nodes[{index}].children")
-
-        if not isinstance(roots, list):
-            raise BadFile(f"{where}: expected a list of node indices")
-        for root in roots:
-            visit(root, np.identity(4), 0, where)
-        return found
-
     # ----------------------------------------------------------------- cameras and lights
 
     def camera(self, index, world: np.ndarray, where: str) -> tuple[Camera, tuple[int, int]]:
@@ -273,17 +229,17 @@ class _Builder:
         kind = camera.get("type")
         if kind == "perspective":
             p = camera["perspective"]
-            fov = _number(p["yfov"], f"{place}.perspective.yfov", 0.0, math.pi)
-            near = _number(p["znear"], f"{place}.perspective.znear", 0.0)
+            fov = number(p["yfov"], f"{place}.perspective.yfov", 0.0, math.pi)
+            near = number(p["znear"], f"{place}.perspective.znear", 0.0)
             if fov in (0.0, math.pi) or near == 0:
                 raise BadFile(f"{place}.perspective: yfov must be in (0, π) and znear positive")
-            aspect = _number(p["aspectRatio"], f"{place}.perspective.aspectRatio", 0.0) if "aspectRatio" in p else None
+            aspect = number(p["aspectRatio"], f"{place}.perspective.aspectRatio", 0.0) if "aspectRatio" in p else None
             if aspect == 0:
                 raise BadFile(f"{place}.perspective.aspectRatio: must be positive")
             size = picture_size(aspect)
             aspect = aspect or size[0] / size[1]
             if "zfar" in p:
-                far = _number(p["zfar"], f"{place}.perspective.zfar", near)
+                far = number(p["zfar"], f"{place}.perspective.zfar", near)
                 if far == near:
                     raise BadFile(f"{place}.perspective.zfar: must be greater than znear")
                 return Camera(_readonly(view), _readonly(perspective_matrix(math.degrees(fov), aspect, near, far)),
@@ -293,9 +249,9 @@ class _Builder:
             return Camera(_readonly(view), _readonly(infinite), "matrix"), size
         if kind == "orthographic":
             o = camera["orthographic"]
-            xmag, ymag = (_number(o[k], f"{place}.orthographic.{k}") for k in ("xmag", "ymag"))
-            near = _number(o["znear"], f"{place}.orthographic.znear", 0.0)
-            far = _number(o["zfar"], f"{place}.orthographic.zfar", near)
+            xmag, ymag = (number(o[k], f"{place}.orthographic.{k}") for k in ("xmag", "ymag"))
+            near = number(o["znear"], f"{place}.orthographic.znear", 0.0)
+            far = number(o["zfar"], f"{place}.orthographic.zfar", near)
             if xmag == 0 or ymag == 0 or far == near:
                 raise BadFile(f"{place}.orthographic: xmag and ymag must not be 0, zfar must exceed znear")
             projection = orthographic_matrix(-xmag, xmag, -ymag, ymag, near, far)
@@ -314,8 +270,8 @@ class _Builder:
         if light.get("type") != "directional":
             raise BadFile(f"{place}.type: {light.get('type')!r} lights are not supported (directional only: "
                           f"the scene model's lights have no distance falloff)")
-        color = _numbers(light.get("color", [1, 1, 1]), 3, f"{place}.color", 0.0)
-        intensity = _number(light.get("intensity", 1.0), f"{place}.intensity", 0.0)
+        color = numbers(light.get("color", [1, 1, 1]), 3, f"{place}.color", 0.0)
+        intensity = number(light.get("intensity", 1.0), f"{place}.intensity", 0.0)
         direction = world[:3, :3] @ np.array([0.0, 0.0, -1.0])
         if not np.any(direction):
             raise BadFile(f"{where}: the light node's matrix maps its −Z axis to zero")
@@ -388,22 +344,22 @@ class _Builder:
         for key in ("normalTexture", "occlusionTexture", "emissiveTexture"):
             if key in entry:
                 raise BadFile(f"{place}.{key}: not supported")
-        if any(_numbers(entry.get("emissiveFactor", [0, 0, 0]), 3, f"{place}.emissiveFactor", 0.0, 1.0)):
+        if any(numbers(entry.get("emissiveFactor", [0, 0, 0]), 3, f"{place}.emissiveFactor", 0.0, 1.0)):
             raise BadFile(f"{place}.emissiveFactor: not supported (only black)")
         pbr = entry.get("pbrMetallicRoughness", {})
         _refuse_extensions(pbr, f"{place}.pbrMetallicRoughness")
         if "metallicRoughnessTexture" in pbr:
             raise BadFile(f"{place}.pbrMetallicRoughness.metallicRoughnessTexture: not supported")
-        color = _numbers(pbr.get("baseColorFactor", [1, 1, 1, 1]), 4, f"{place}.pbrMetallicRoughness.baseColorFactor",
+        color = numbers(pbr.get("baseColorFactor", [1, 1, 1, 1]), 4, f"{place}.pbrMetallicRoughness.baseColorFactor",
                          0.0, 1.0)
-        metallic = _number(pbr.get("metallicFactor", 1.0), f"{place}.pbrMetallicRoughness.metallicFactor", 0.0, 1.0)
-        roughness = _number(pbr.get("roughnessFactor", 1.0), f"{place}.pbrMetallicRoughness.roughnessFactor", 0.0, 1.0)
+        metallic = number(pbr.get("metallicFactor", 1.0), f"{place}.pbrMetallicRoughness.metallicFactor", 0.0, 1.0)
+        roughness = number(pbr.get("roughnessFactor", 1.0), f"{place}.pbrMetallicRoughness.roughnessFactor", 0.0, 1.0)
         mode = entry.get("alphaMode", "OPAQUE")
         if mode not in ("OPAQUE", "MASK", "BLEND"):
             raise BadFile(f"{place}.alphaMode: {mode!r} (expected OPAQUE, MASK or BLEND)")
         cutoff = None
         if mode == "MASK":
-            cutoff = _number(entry.get("alphaCutoff", 0.5), f"{place}.alphaCutoff", 0.0, 1.0)
+            cutoff = number(entry.get("alphaCutoff", 0.5), f"{place}.alphaCutoff", 0.0, 1.0)
         opaque = mode == "OPAQUE"
         if opaque:
             color[3] = 1.0
@@ -468,11 +424,9 @@ class _Builder:
                 with Image.open(io.BytesIO(data)) as image:
                     if image.format not in ("PNG", "JPEG"):
                         raise BadFile(f"{place}: a {image.format} image (glTF images are PNG or JPEG)")
-                    width, height = image.size
-                    if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE) or width * height > MAX_TEXELS:
-                        raise BadFile(f"{place}: {width} x {height} texels, more than the limit "
-                                      f"({MAX_SIDE} per side, {MAX_TEXELS} in all)")
-                    self.images[index] = texels.rgba_texels(image)
+                    self.images[index] = texels.checked_texels(image, MAX_SIDE, MAX_TEXELS)
+            except texels.TooManyTexels as error:
+                raise BadFile(f"{place}: {error}") from None
             except UnidentifiedImageError:
                 raise BadFile(f"{place}: not a PNG or JPEG image") from None
             except (OSError, SyntaxError, EOFError, Image.DecompressionBombError) as error:

@@ -22,7 +22,8 @@ Shared by the two glTF readers of the scene layer: `softras.scene.meshfiles`
 - images (:meth:`GltfFile.image_bytes`): an image's bytes from a ``data:``
   URI, a file or a bufferView;
 - node transforms (:func:`node_matrix`): ``matrix`` (column-major) or
-  translation · rotation · scale, as (4, 4) float64 column-vector matrices.
+  translation · rotation · scale, as (4, 4) float64 column-vector matrices,
+  and the node hierarchy with world matrices (:meth:`GltfFile.walk`).
 
 Every problem raises `softras.scene.fileio.BadFile` whose one line starts
 with the glTF place, ``meshes[0].primitives[1]: index 9 out of range for 8
@@ -42,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from softras.scene.fileio import BadFile, read_bytes
+from softras.scene.model import MAX_NODE_DEPTH
 
 COMPONENTS = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
 TYPES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
@@ -261,6 +263,44 @@ class GltfFile:
                 raise BadFile(f"{where}: {name} has {len(array)} entries for {len(positions)} positions")
         return Primitive(positions, flat.reshape(-1, 3), colors, normals, uvs)
 
+    # ----------------------------------------------------------------- nodes
+
+    def walk(self, roots, where: str) -> list[tuple[int, np.ndarray]]:
+        """(node index, world matrix (4, 4)) of the nodes under ``roots``
+        (node indices; ``where``: the place listing them), depth-first,
+        parents before children, in list order.  Refused: a node reached twice
+        (glTF's nodes form a forest), nesting deeper than MAX_NODE_DEPTH, a
+        world matrix that overflows, skins and morph target weights (drawn
+        without them the picture would be wrong)."""
+        found, seen = [], set()
+
+        def visit(index, parent, depth, place):
+            if depth > MAX_NODE_DEPTH:
+                raise BadFile(f"{place}: nodes nested more than {MAX_NODE_DEPTH} deep")
+            node = self.item("nodes", index, place)
+            if index in seen:
+                raise BadFile(f"{place}: nodes[{index}] is reached twice (the node hierarchy must be a forest)")
+            seen.add(index)
+            for key, what in (("skin", "skins"), ("weights", "morph target weights")):
+                if key in node:
+                    raise BadFile(f"nodes[{index}].{key}: {what} are not supported")
+            with np.errstate(over="ignore", invalid="ignore"):
+                world = parent @ node_matrix(node, f"nodes[{index}]")
+            if not np.isfinite(world).all():
+                raise BadFile(f"nodes[{index}]: the world matrix overflows")
+            found.append((index, world))
+            children = node.get("children", [])
+            if not isinstance(children, list):
+                raise BadFile(f"nodes[{index}].children: expected a list of node indices")
+            for child in children:
+                visit(child, world, depth + 1, f"nodes[{index}].children")
+
+        if not isinstance(roots, list):
+            raise BadFile(f"{where}: expected a list of node indices")
+        for root in roots:
+            visit(root, np.identity(4), 0, where)
+        return found
+
     # ----------------------------------------------------------------- images
 
     def image_bytes(self, index: int, where: str) -> bytes:
@@ -282,21 +322,29 @@ def node_matrix(node: dict, where: str = "a node") -> np.ndarray:
     column-major) or T · R · S (translation, unit quaternion rotation
     (x, y, z, w), scale; each optional)."""
     if "matrix" in node:
-        matrix = _numbers(node["matrix"], 16, f"{where}.matrix")
+        matrix = numbers(node["matrix"], 16, f"{where}.matrix")
         return matrix.reshape(4, 4).T
-    x, y, z, w = _numbers(node.get("rotation", (0, 0, 0, 1)), 4, f"{where}.rotation")
+    x, y, z, w = numbers(node.get("rotation", (0, 0, 0, 1)), 4, f"{where}.rotation")
     rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
                          [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
                          [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
     local = np.identity(4)
-    local[:3, :3] = rotation * _numbers(node.get("scale", (1, 1, 1)), 3, f"{where}.scale")
-    local[:3, 3] = _numbers(node.get("translation", (0, 0, 0)), 3, f"{where}.translation")
+    local[:3, :3] = rotation * numbers(node.get("scale", (1, 1, 1)), 3, f"{where}.scale")
+    local[:3, 3] = numbers(node.get("translation", (0, 0, 0)), 3, f"{where}.translation")
     return local
 
 
-def _numbers(value, count: int, where: str) -> np.ndarray:
-    """``count`` finite JSON numbers -> (count,) float64."""
-    if (not isinstance(value, (list, tuple)) or len(value) != count
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
-        raise BadFile(f"{where}: expected {count} finite numbers")
-    return np.array(value, dtype=np.float64)
+def number(value, where: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+    """A finite JSON number in [lo, hi] (not a boolean)."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        raise BadFile(f"{where}: expected a number, got {value!r}")
+    if not lo <= value <= hi:
+        raise BadFile(f"{where}: {value:g} is out of range [{lo:g}, {hi:g}]")
+    return float(value)
+
+
+def numbers(value, count: int, where: str, lo: float = -math.inf, hi: float = math.inf) -> np.ndarray:
+    """``count`` finite JSON numbers in [lo, hi] -> (count,) float64."""
+    if not isinstance(value, (list, tuple)) or len(value) != count:
+        raise BadFile(f"{where}: expected {count} numbers")
+    return np.array([number(v, f"{where}[{i}]", lo, hi) for i, v in enumerate(value)])

@@ -18,6 +18,7 @@ the form ``"path: reason"``.
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -185,6 +186,13 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write a UTF-8 text file atomically (same guarantees as `write_png_atomic`)."""
     path = check_writable(path)
     _write_atomic(path, lambda handle: handle.write(text.encode("utf-8")), "file")
+
+
+def copy_file_atomic(source: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Copy a file byte for byte, atomically (same guarantees as `write_png_atomic`)."""
+    path = check_writable(path)
+    with open(source, "rb") as data:
+        _write_atomic(path, lambda handle: shutil.copyfileobj(data, handle), "file")
 
 
 def _write_atomic(path: Path, write, what: str) -> None:

@@ -67,7 +67,7 @@ from softras.scene.fileio import BadFile as _Bad
 from softras.scene.fileio import check_counts as _check_counts
 from softras.scene.fileio import read_bytes as _read_bytes
 from softras.scene.meshes import MeshArrays
-from softras.scene.model import MAX_NODE_DEPTH, Mesh, SceneError, _readonly
+from softras.scene.model import Mesh, SceneError, _readonly
 
 SUFFIXES = (".ply", ".obj", ".npz", ".glb", ".gltf")
 
@@ -648,22 +648,14 @@ def _gltf_draws(file: gltf_files.GltfFile) -> list[tuple[int, np.ndarray]]:
     gltf = file.document
     if not gltf.get("scenes"):
         return [(m, np.identity(4)) for m in range(len(gltf.get("meshes", [])))]
-    scene = file.item("scenes", gltf.get("scene", 0), "scene")
+    index = gltf.get("scene", 0)
+    scene = file.item("scenes", index, "scene")
     found = []
-
-    def visit(index, parent, depth, where):
-        if depth > MAX_NODE_DEPTH:
-            raise _Bad(f"{where}: nodes nested more than {MAX_NODE_DEPTH} deep (or in a cycle)")
-        node = file.item("nodes", index, where)
-        world = parent @ gltf_files.node_matrix(node, f"nodes[{index}]")
+    for n, world in file.walk(scene.get("nodes", []), f"scenes[{index}].nodes"):
+        node = gltf["nodes"][n]
         if "mesh" in node:
-            file.item("meshes", node["mesh"], f"nodes[{index}]")
+            file.item("meshes", node["mesh"], f"nodes[{n}].mesh")
             found.append((node["mesh"], world))
-        for child in node.get("children", []):
-            visit(child, world, depth + 1, f"nodes[{index}].children")
-
-    for root in scene.get("nodes", []):
-        visit(root, np.identity(4), 0, "scene")
     return found
 
 

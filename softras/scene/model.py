@@ -185,6 +185,7 @@ class Scene:
     framebuffer: str = "rgba8"          # "rgba8" | "rgba32f" (see FRAMEBUFFERS)
     render_order: str = "scene"         # "scene" | "opaque_then_sorted" (see ordered_draws)
     front_face: str = "ccw"             # "ccw" | "cw": the front winding in window space (FRONT_FACES)
+    declares_tolerance: bool = False    # the scene file (or dict) gave "tolerance" itself, not the defaults
 
 
 def _readonly(array: np.ndarray | None) -> np.ndarray | None:

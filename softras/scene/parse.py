@@ -484,13 +484,9 @@ def _decode_image(path: str, place: str) -> np.ndarray:
 
     try:
         with Image.open(path) as image:
-            width, height = image.size
-            if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE) or width * height > MAX_TEXELS:
-                raise SceneError(place, f"{path} is {width} x {height} texels, more than the limit "
-                                        f"({MAX_SIDE} per side, {MAX_TEXELS} in all)")
-            return _readonly(texels.rgba_texels(image))
-    except SceneError:
-        raise
+            return _readonly(texels.checked_texels(image, MAX_SIDE, MAX_TEXELS))
+    except texels.TooManyTexels as error:
+        raise SceneError(place, f"{path} is {error}") from None
     except UnidentifiedImageError:
         raise SceneError(place, f"{path} is not an image file (not a PNG or any format Pillow reads)") from None
     except Image.DecompressionBombError as error:
@@ -887,7 +883,8 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = No
     return Scene(width=width, height=height, background=_readonly(background), samples=int(samples),
                  camera=camera, textures=textures, lights=lights, draws=tuple(draws),
                  tolerance=tolerance, source=source, description=description,
-                 framebuffer=framebuffer, render_order=render_order, front_face=front_face)
+                 framebuffer=framebuffer, render_order=render_order, front_face=front_face,
+                 declares_tolerance="tolerance" in data)
 
 
 def _reject_constant(name: str):
@@ -931,6 +928,13 @@ def _read_json(path: str) -> Any:
 SCENE_SUFFIXES = (".json",) + gltf.SUFFIXES
 
 
+def folder_scene_files(folder: str | os.PathLike) -> list[str]:
+    """The scene files of one folder (`SCENE_SUFFIXES`), sorted by name."""
+    folder = os.fspath(folder)
+    names = sorted(name for name in os.listdir(folder) if name.endswith(SCENE_SUFFIXES))
+    return [os.path.join(folder, name) for name in names if os.path.isfile(os.path.join(folder, name))]
+
+
 def scene_files(paths) -> list[str]:
     """The scene files named by command-line PATHs: a file as given, a folder's
     ``*.json``, ``*.gltf`` and ``*.glb`` files sorted by name; each file once,
@@ -942,9 +946,7 @@ def scene_files(paths) -> list[str]:
     found: dict[str, None] = {}
     for path in map(os.fspath, paths):
         if os.path.isdir(path):
-            names = sorted(name for name in os.listdir(path) if name.endswith(SCENE_SUFFIXES))
-            found.update((os.path.join(path, name), None) for name in names
-                         if os.path.isfile(os.path.join(path, name)))
+            found.update((file, None) for file in folder_scene_files(path))
         elif os.path.isfile(path):
             found[path] = None
         else:

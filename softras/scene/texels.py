@@ -72,6 +72,22 @@ def rgba_texels(image) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(image.convert("RGBA"), dtype=np.uint8))
 
 
+class TooManyTexels(ValueError):
+    """An image over the texture size limits; the message is "W x H texels, more than the limit (...)"."""
+
+
+def checked_texels(image, max_side: int, max_texels: int) -> np.ndarray:
+    """`rgba_texels` of an open Pillow image whose size, from its header, is
+    within the limits (``max_side`` a side, ``max_texels`` in all: the scene
+    model's MAX_SIDE and MAX_TEXELS); `TooManyTexels` before any pixel is
+    decoded otherwise."""
+    width, height = image.size
+    if not (1 <= width <= max_side and 1 <= height <= max_side) or width * height > max_texels:
+        raise TooManyTexels(f"{width} x {height} texels, more than the limit ({max_side} per side, "
+                            f"{max_texels} in all)")
+    return rgba_texels(image)
+
+
 def _rgba8(color) -> np.ndarray:
     """(4,) float colour in [0, 1] -> (4,) uint8, round(c * 255)."""
     return np.rint(np.asarray(color, np.float64) * 255.0).astype(np.uint8)

@@ -267,9 +267,7 @@ def check_scene(path, *, render_soft: Callable | None = None,
     try:
         scene = load_scene(source)
         result.description = scene.description
-        result.tolerance, result.tolerance_source = scene_tolerance(path, scene)
-        if isinstance(source, dict) and "tolerance" in source:
-            result.tolerance, result.tolerance_source = dict(scene.tolerance), "scene"
+        result.tolerance, result.tolerance_source = scene_tolerance(scene)
         if tolerance is not None:
             result.tolerance, result.tolerance_source = dict(tolerance), "given"
         capabilities = _gl_info()

@@ -77,11 +77,12 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from softras.scene.parse import SCENE_SUFFIXES
+from softras.scene.parse import folder_scene_files
 
 __all__ = [
     "SCENES_DIR", "GOLDEN_DIR", "MANIFEST", "GoldenError", "Change", "Verification",
     "golden_path", "default_scenes", "pixel_hash", "provenance", "read_manifest", "update", "verify",
+    "failure_images",
 ]
 
 #: Where the scenes live by default: ``scenes/`` of the current directory (a
@@ -126,15 +127,14 @@ def golden_path(scene_path: str | os.PathLike, golden_dir: str | os.PathLike | N
 
 
 def default_scenes(scenes_dir: str | os.PathLike | None = None) -> list[Path]:
-    """The scene files of a folder (``*.json``, ``*.gltf``, ``*.glb``: the
-    suffixes `softras.scene.parse.scene_files` takes), sorted by name.
+    """The scene files of a folder (`softras.scene.parse.folder_scene_files`:
+    ``*.json``, ``*.gltf``, ``*.glb``, sorted by name); none when it is missing.
 
     ``scenes_dir`` defaults to ``scenes/`` of the current directory
     (:data:`SCENES_DIR`): this repository's scenes when run from its root.
     """
     folder = Path(scenes_dir if scenes_dir is not None else SCENES_DIR)
-    return sorted((path for path in folder.iterdir() if path.name.endswith(SCENE_SUFFIXES) and path.is_file()),
-                  key=lambda path: path.name) if folder.is_dir() else []
+    return [Path(path) for path in folder_scene_files(folder)] if folder.is_dir() else []
 
 
 def pixel_hash(image: np.ndarray) -> str:
@@ -605,6 +605,22 @@ class Verification:
         return text + f"  ({self.seconds:.2f} s)"
 
 
+def failure_images(result: Verification) -> dict[str, np.ndarray]:
+    """The pictures of a verified scene (:func:`verify` with ``keep_images``):
+    its golden, gl and soft images, and heat maps ``diff_gl`` and ``diff_soft``
+    of each against the golden image where it is there and the sizes agree
+    (`softras.verification.metrics.compare`)."""
+    from softras.verification.metrics import compare
+
+    images = dict(result.images)
+    golden = images.get("golden")
+    if golden is not None:
+        for name in ("gl", "soft"):
+            if name in images and images[name].shape == golden.shape:
+                images[f"diff_{name}"] = compare(images[name], golden).diff_image
+    return images
+
+
 def _tolerance_text(comparison) -> str:
     return (f"ssim {comparison.ssim:.4f} (min {comparison.min_ssim}), bad {comparison.bad_fraction:.2%} "
             f"(max {comparison.max_bad_fraction:.2%}, threshold {comparison.threshold}), "
@@ -690,7 +706,7 @@ def verify(
                      f"scene is {scene.width}x{scene.height}: run softras golden --update")
                 golden = None
         if golden is not None:
-            tolerance = scene_tolerance(path, scene)[0]
+            tolerance = scene_tolerance(scene)[0]
             gl = np.ascontiguousarray(_render_gl(scene), dtype=np.uint8)
             result.gl_diff_pixels = _diff_pixels(gl, golden)
             if same_gl:

@@ -37,9 +37,6 @@ up. The exit status follows the merged verdicts as a run's does
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -210,18 +207,6 @@ def merged_meta(shards: list[Shard], results: list[SceneResult]) -> dict:
     }
 
 
-def _copy_atomic(source: Path, target: Path) -> None:
-    """Copy a file byte for byte through a temporary file and a rename."""
-    handle, temp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-    try:
-        with os.fdopen(handle, "wb") as out, open(source, "rb") as inp:
-            shutil.copyfileobj(inp, out)
-        os.replace(temp, target)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
-
-
 @dataclass
 class Merged:
     """A merged report: its results (sorted by name, an unsharded run's order), meta, index.html, baseline check."""
@@ -238,7 +223,7 @@ def write_merged(folder, shards: list[Shard], *, baseline=None) -> Merged:
     ``baseline``: a :class:`softras.verification.runner.Baseline` to compare the merged results with
     (stored in results.json, as a run with ``--baseline`` does).
     """
-    from softras.scene.imageio import write_text_atomic
+    from softras.scene.imageio import copy_file_atomic, write_text_atomic
     from softras.verification.report import write_summary
     from softras.verification.runner import compare_baseline, failures_csv
 
@@ -253,7 +238,7 @@ def write_merged(folder, shards: list[Shard], *, baseline=None) -> Merged:
         if result.images:
             (folder / result.name).mkdir(exist_ok=True)
         for key in result.images:
-            _copy_atomic(source[result.name] / images[key], folder / result.name / f"{key}.png")
+            copy_file_atomic(source[result.name] / images[key], folder / result.name / f"{key}.png")
     meta = merged_meta(shards, results)
     if check is not None:
         meta["baseline"] = check.to_dict()
@@ -287,9 +272,6 @@ def print_merged(merged: Merged, out) -> int:
     if check is not None:
         for line in check.lines():
             print(line, file=out)
-        print(f"baseline {check.source}: " + ("results match it" if check.matches else
-              f"{len(check.new_failures)} new failure{'s' if len(check.new_failures) != 1 else ''}, "
-              f"{len(check.unexpected)} unexpected verdict{'s' if len(check.unexpected) != 1 else ''}"), file=out)
     reports = merged.meta["merged"]["reports"]
     print(f"report: {merged.index}", file=out)
     print(f"conformance --merge: {len(reports)} report{'s' if len(reports) != 1 else ''}"

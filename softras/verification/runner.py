@@ -788,12 +788,16 @@ class BaselineCheck:
                 "unexpected": rows(self.unexpected)}
 
     def lines(self) -> list[str]:
-        """For the terminal."""
+        """For the terminal: each finding, then the summary line."""
         out = []
         for title, items in (("new failure", self.new_failures), ("unexpected", self.unexpected)):
             for scene, expected, got in items:
                 out.append(f"baseline: {title}: {scene}: expected {VERDICT_NAMES.get(expected, expected)}, "
                            f"got {VERDICT_NAMES[got]}")
+        news, unexpected = len(self.new_failures), len(self.unexpected)
+        out.append(f"baseline {self.source}: " + ("results match it" if self.matches else
+                   f"{news} new failure{'s' if news != 1 else ''}, "
+                   f"{unexpected} unexpected verdict{'s' if unexpected != 1 else ''}"))
         return out
 
 
@@ -1037,10 +1041,6 @@ def conformance_command(paths, *, jobs: int, profile: str, profile_text: str, ti
         if check is not None:
             for line in check.lines():
                 print(line, file=out)
-            print(f"baseline {baseline.source}: " + ("results match it" if check.matches else
-                  f"{len(check.new_failures)} new failure{'s' if len(check.new_failures) != 1 else ''}, "
-                  f"{len(check.unexpected)} unexpected verdict{'s' if len(check.unexpected) != 1 else ''}"),
-                  file=out)
         print(f"conformance: {_summary_line(results)} in {seconds:.1f} s (-j {jobs}, profile {profile_text})",
               file=out)
         out.flush()

@@ -78,7 +78,6 @@ one place.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -149,24 +148,15 @@ def feature_tolerance(scene) -> tuple[dict, list[str]]:
     return tolerance, features
 
 
-def scene_tolerance(path: str | os.PathLike | None, scene) -> tuple[dict, str]:
+def scene_tolerance(scene) -> tuple[dict, str]:
     """The tolerance a scene is judged by, and where it comes from.
 
-    ``(scene.tolerance, "scene")`` when the scene file declares ``"tolerance"``,
-    else ``(defaults, "defaults for base, texture, ...")`` (:func:`feature_tolerance`).
-    ``path`` None (a scene built in memory): the scene's ``declares_tolerance``
-    attribute when it has one, else the defaults.
+    ``(scene.tolerance, "scene")`` when the scene file or dict declares
+    ``"tolerance"`` (`softras.scene.Scene.declares_tolerance`, recorded by the
+    loader; a glTF scene or one built in code has none), else ``(defaults,
+    "defaults for base, texture, ...")`` (:func:`feature_tolerance`).
     """
-    if path is not None and Path(path).suffix.lower() in (".gltf", ".glb"):
-        declared = False        # a glTF scene has no tolerance key: the feature defaults
-    elif path is not None:
-        try:
-            declared = "tolerance" in json.loads(Path(path).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            declared = True  # load_scene read it; keep what it parsed
-    else:
-        declared = bool(getattr(scene, "declares_tolerance", False))
-    if declared:
+    if scene.declares_tolerance:
         return dict(scene.tolerance), "scene"
     tolerance, features = feature_tolerance(scene)
     return tolerance, "defaults for " + ", ".join(features)
@@ -701,16 +691,14 @@ def verify(scene, image, reference, *, profile: str = "spec", capabilities: dict
     """
     from softras.scene import Scene, load_scene
 
-    path = None
     if not isinstance(scene, Scene):
-        path = scene
         scene = load_scene(scene)
     shape = (scene.height, scene.width)
     image = _picture(image, "image", shape)
     reference = _picture(reference, "reference", shape)
     chosen = choose_profile(profile, capabilities)
     if tolerance is None:
-        tolerance, _ = scene_tolerance(path, scene)
+        tolerance, _ = scene_tolerance(scene)
     if chosen == "spec":
         bounds = spec_bounds(scene, capabilities)
         verdict, reasons, figures, images = judge_spec(scene, image, reference, tolerance, bounds,
