@@ -132,10 +132,11 @@ def test_random_scenes_are_bit_identical(seed, samples):
     assert_same(*both_paths(scene, samples=samples), f"random scene seed {seed}, {samples} samples")
 
 
-def lit_scene(seed: int) -> dict:
-    """`random_scene` Gouraud-lit: vertex normals in every direction, a point
-    and a directional light, random material terms (lit colours above 1 and
-    below 0 included: the framebuffer clamps), some draws textured."""
+def lit_scene(seed: int, shading: str = "gouraud") -> dict:
+    """`random_scene` lit with ``shading``: vertex normals in every direction,
+    a point and a directional light, random material terms (lit colours
+    above 1 and below 0 included: the framebuffer clamps), some draws
+    textured."""
     rng = np.random.default_rng(1000 + seed)
     data = random_scene(seed, textured=seed % 2 == 1)
     data["lights"] = [{"type": "point", "position": rng.uniform(-3, 3, 3).tolist(), "color": [1, 0.9, 0.8]},
@@ -143,7 +144,7 @@ def lit_scene(seed: int) -> dict:
     for node in data["nodes"]:
         n = len(node["mesh"]["positions"])
         node["mesh"]["normals"] = rng.normal(size=(n, 3)).tolist()
-        node["material"] = dict(node.get("material", {}), shading="gouraud",
+        node["material"] = dict(node.get("material", {}), shading=shading,
                                 ambient=float(rng.uniform(0, 0.3)), diffuse=float(rng.uniform(0.3, 1.2)),
                                 specular=float(rng.uniform(0, 1)), shininess=float(rng.uniform(1, 64)))
     return data
@@ -156,6 +157,17 @@ def test_random_gouraud_scenes_are_bit_identical(seed, samples):
     scene = softras.load_scene(lit_scene(seed))
     assert all(d.material.shading == "gouraud" for d in scene.draws)
     assert_same(*both_paths(scene, samples=samples), f"random Gouraud scene seed {seed}, {samples} samples")
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("samples", [1, 4])
+def test_random_flat_scenes_are_bit_identical(seed, samples):
+    """Flat-shaded draws on the compiled path (one lit colour per triangle,
+    `fastpath.flat_corner_colors`, not interpolated) equal the stages byte
+    for byte, clipped triangles (which take their source's colour) included."""
+    scene = softras.load_scene(lit_scene(seed, "flat"))
+    assert all(d.material.shading == "flat" for d in scene.draws)
+    assert_same(*both_paths(scene, samples=samples), f"random flat scene seed {seed}, {samples} samples")
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -228,6 +240,53 @@ def test_plain_colors_give_the_texel_bytes():
             assert [unorm8(v) for v in value] == k.tolist(), sum_of_weights
     assert fastpath.plain_colors(np.ones((5, 4)))
     assert not fastpath.plain_colors(np.array([[1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 0.999]]))
+
+
+def unorm8_boundaries() -> np.ndarray:
+    """Colour values on `ops.unorm8`'s rounding boundaries: float64 values
+    halfway between two float32 values x (even, where the tie goes) and
+    next(x) that unorm8 turns into different bytes.  A value one float64
+    ulp above gives the other byte."""
+    from softras.pipeline.ops import unorm8
+    values = []
+    for k in range(255):
+        a = np.float32((k + 0.5) / 255)
+        for _ in range(40):
+            a = np.nextafter(a, np.float32(0), dtype=np.float32)
+        for _ in range(80):
+            b = np.nextafter(a, np.float32(2), dtype=np.float32)
+            if unorm8(float(a)) != unorm8(float(b)) and not a.view(np.int32) & 1:
+                values.append((float(a) + float(b)) / 2)
+                break
+            a = b
+    return np.array(values)
+
+
+def test_flat_lane_words_take_the_colour_as_it_is():
+    """`_lane_words` with ``flat``: the word is `shade_unlit` then `unorm8`
+    of corner 0's colour itself, on unorm8's rounding boundaries
+    (`unorm8_boundaries`) at weights that sum to 1 + 3e-16, where
+    interpolating the same colour at all three corners rounds every one of
+    them the other way."""
+    from softras.kernels import interpolate as k_interpolate
+    from softras.kernels.lanes import _LF_W, _LI_WORD, _NLF
+    from softras.pipeline.fragment import shade_unlit
+    from softras.pipeline.ops import unorm8
+    boundaries = unorm8_boundaries()
+    n = len(boundaries)
+    assert n > 50
+    colors = np.zeros((n, 3, 4))
+    colors[:, 0, :3] = np.stack([boundaries, np.roll(boundaries, 1), np.roll(boundaries, 2)], axis=1)
+    colors[:, 0, 3] = 1.0
+    colors[:, 1:] = colors[:, :1]        # (the kernels hold zeros there: any value is weighted by 0)
+    lf = np.zeros((_NLF, n))
+    lf[_LF_W:_LF_W + 3] = np.array([0.3, 0.3, 0.4])[:, None] * (1 + 3e-16)
+    li = np.zeros((_LI_WORD + 1, n), np.int64)
+    expected = shade_unlit(colors[:, 0], np.ones(4))
+    for t in range(n):
+        k_interpolate._lane_words(1, t, colors, lf, li, False, True)
+        word = int(li[_LI_WORD, 0])
+        assert [(word >> (8 * c)) & 255 for c in range(4)] == [unorm8(v) for v in expected[t]], t
 
 
 def test_frexp32_equals_math_frexp():

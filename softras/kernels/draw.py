@@ -35,11 +35,12 @@ The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes and depth as 24-bit integers (`softras.kernels.ops`).
 
 `unsupported(scene, ...)` says why a scene must take the general path (lines,
-flat and Phong shading, anisotropic textures, alpha-tested materials, other
-sample counts or clipping policies...).  Gouraud shading is drawn here: its
-lighting is per vertex (`softras.pipeline.render.vertex_base_colors`, the
-stages' own function, in numpy), and the lit colours are interpolated as
-vertex colours are.  ``front_face="cw"`` is drawn here as the
+Phong shading, anisotropic textures, alpha-tested materials, other
+sample counts or clipping policies...).  Gouraud and flat shading are drawn
+here, lit by the stages' own functions in numpy: Gouraud per vertex
+(`softras.pipeline.render.vertex_base_colors`), its lit colours interpolated
+as vertex colours are; flat per triangle (`flat_corner_colors`), its colour
+taken as it is.  ``front_face="cw"`` is drawn here as the
 swapped cull mode (`softras.pipeline.setup.window_cull`).  A draw pays
 only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
@@ -78,7 +79,7 @@ from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texe
                                      _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import ops, setup, texture, vertex
-from softras.pipeline.render import check_sample_memory, vertex_base_colors
+from softras.pipeline.render import check_sample_memory, flat_colors, vertex_base_colors
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
@@ -96,8 +97,10 @@ Samples = namedtuple("Samples", ["offsets", "positions"])
 # A draw's per-fragment operations, as codes: depth function
 # (`softras.pipeline.ops.DEPTH_FUNCS`), whether passed depths are written
 # (depth_write and a depth test), blend mode (`softras.pipeline.ops.BLEND_MODES`),
-# and whether the fragment colour is the texel's own (`plain_colors`).
-DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain"])
+# whether the fragment colour is the texel's own (`plain_colors`), and
+# whether the colour is the triangle's, not interpolated (flat shading,
+# `flat_corner_colors`).
+DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat"])
 
 
 # ----------------------------------------------------------------------------- dispatch
@@ -120,7 +123,7 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
         material = draw.material
         if draw.mesh.primitive != "triangles":
             return f"{draw.path}: {draw.mesh.primitive}"
-        if material.shading not in ("unlit", "gouraud"):
+        if material.shading == "phong":
             return f"{draw.path}: {material.shading} shading"
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
@@ -180,6 +183,9 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
                      _scratch.take("uv", (n if textured else 1, 3, 2), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
     _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs), tris, n_threads, _scratch)
+    flat = material.shading == "flat"
+    if flat:
+        tris.colors[...] = flat_corner_colors(scene, draw, base)[clipped.source]
     visible = np.flatnonzero(tris.i[:, _I_VIS])
     if len(visible) == 0:
         return
@@ -191,12 +197,32 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
-                      bool(textured and plain_colors(base)))
+                      bool(textured and not flat and plain_colors(base)), flat)
     fb = Framebuffer(color.view(np.uint32).reshape(color.shape[:3]), depth)
     draw_tiles = _DRAW_TILES[len(offsets), textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
                n_threads)
+
+
+def flat_corner_colors(scene: Scene, draw, base: np.ndarray) -> np.ndarray:
+    """Flat shading's colour of each of the draw's triangles, as the kernels
+    read it: (M, 3, 4), the colour of `softras.pipeline.render.flat_colors`
+    (face normal, centroid and provoking vertex of the source triangle,
+    straight) at corner 0 and zeros at corners 1 and 2
+    (`softras.kernels.interpolate._lane_words` with ``flat``).  base : (V, 4)
+    the straight vertex colours times the material's.
+
+    The stages light the set-up triangles' source triangles; this lights
+    every mesh triangle once, row by row with the same numpy operations, and
+    a clipped triangle takes its source's row."""
+    mesh = draw.mesh
+    world = vertex.world_positions(mesh.positions, draw.world)
+    eye = np.linalg.inv(scene.camera.view)[:3, 3]
+    out = np.zeros((len(mesh.indices), 3, 4))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):   # (degenerate triangles: never drawn)
+        out[:, 0] = flat_colors(world, mesh.indices, base, eye, scene.lights, draw.material)[0]
+    return out
 
 
 def plain_colors(base: np.ndarray) -> bool:
@@ -307,20 +333,40 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
             state_r = DrawState(*state)
             tex_r = Texels(*tex)
             for tile in range(r, n_tiles, n_threads):
-                _tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, lanes, n_samples, textured)
+                if textured:
+                    _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, lanes,
+                                   n_samples)
+                else:
+                    _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lanes, n_samples)
 
     return draw_tiles
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _tile(tile, bins, tris, samples, fb, state, sampler, tex, lanes, n_samples, textured):
-    """One 64x64 tile: its triangles in draw order; per triangle the 8x8 blocks
-    of its bounding box inside the tile with the exact early-out / early-in
-    corner test of `softras.pipeline.rasterize._raster_triangle`
-    (`softras.kernels.rasterize._block_test`); then in lanes: the covered
-    pixels of an untextured triangle (`_flat_block`, from LANES of them and
-    after its last block), the covered quads of a textured one per block
-    (`_textured_block`).  The per-pixel arithmetic is
+# What the tile code costs to compile (docs/speed.md, "Compile time").
+# numba's own inliner (``inline="always"``) copies and re-processes a callee
+# at every call site before dead branches are pruned: with the whole tile code
+# inlined into the parallel driver, every variant inlined the texture code as
+# well, and that took 102 of the 126 s that compiling the untextured driver
+# took (3.1 GB peak).  So:
+#
+# - `_flat_tile` is inlined into the driver (the body of a parallel loop gets
+#   numba's noalias on its arrays: as a separate function the 24k grid drew
+#   10-18 % slower), and the texture code is not: `_textured_tile` is a
+#   function of its own, compiled only for a textured draw, once per sample
+#   count (`numba.literally`: the count is a compile-time constant there);
+# - `_textured_tile` is not cached on its own: only the drivers are (with the
+#   kernels' source stamp), and a driver's cached code holds its code.
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _flat_tile(tile, bins, tris, samples, fb, state, lanes, n_samples):
+    """One 64x64 tile of an untextured draw: its triangles in draw order; per
+    triangle the 8x8 blocks of its bounding box inside the tile with the
+    exact early-out / early-in corner test of
+    `softras.pipeline.rasterize._raster_triangle`
+    (`softras.kernels.rasterize._block_test`); the covered pixels listed as
+    lanes and shaded (`_flat_block`) from LANES of them on and after the
+    triangle's last block.  The per-pixel arithmetic is
     `softras.pipeline.render._render_pass`'s, operation for operation.
 
     Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the thread's
@@ -335,44 +381,21 @@ def _tile(tile, bins, tris, samples, fb, state, sampler, tex, lanes, n_samples, 
     bin_start, bin_tri = bins.start, bins.tri
     tri_f, tri_i, bbox, colors, uv = tris.f, tris.i, tris.bbox, tris.colors, tris.uv
     color32, depth = fb.color32, fb.depth
-    height, width = depth.shape[0], depth.shape[1]
     full_mask = (1 << n_samples) - 1
-    min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
-    min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
-    step = 2 if textured else 1             # blocks start at even pixels when textured (whole quads)
-    tx0 = (tile % bins.tiles_x) * TILE
-    ty0 = (tile // bins.tiles_x) * TILE
-    tx1 = min(tx0 + TILE, width) - 1
-    ty1 = min(ty0 + TILE, height) - 1
+    box = _sample_box(offsets)
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
         edges = _edges(tri_i, t)
-        n_flat = 0                              # untextured lanes listed, shaded from LANES on
-        x_start = max(bbox[t, 0], tx0)
-        x_end = min(bbox[t, 1], tx1)
-        y_start = max(bbox[t, 2], ty0)
-        y_end = min(bbox[t, 3], ty1)
-        for block_y in range(y_start & -step, y_end + 1, BLOCK):
-            by = max(block_y, y_start)
-            by1 = min(block_y + BLOCK - 1, y_end)
-            for block_x in range(x_start & -step, x_end + 1, BLOCK):
-                bx = max(block_x, x_start)
-                bx1 = min(block_x + BLOCK - 1, x_end)
-                # The edge functions at the block's extreme sample positions.
-                outside, all_in = _block_test(edges, bx * 256 + min_ox, bx1 * 256 + max_ox,
-                                              by * 256 + min_oy, by1 * 256 + max_oy)
+        x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
+        n_flat = 0                              # lanes listed, shaded from LANES on
+        for by in range(y_start, y_end + 1, BLOCK):
+            by1 = min(by + BLOCK - 1, y_end)
+            for bx in range(x_start, x_end + 1, BLOCK):
+                bx1 = min(bx + BLOCK - 1, x_end)
+                outside, all_in = _block_test(edges, bx * 256 + box[0], bx1 * 256 + box[1],
+                                              by * 256 + box[2], by1 * 256 + box[3])
                 if outside:
                     continue
-                if textured:
-                    if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
-                        n = _list_whole_block(bx, by, full_mask, lf, li)
-                    else:
-                        n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples)
-                    if n:
-                        _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_samples)
-                    continue
-                # Untextured: shaded once LANES are listed and after the
-                # triangle's last block.
                 n_flat = _list_pixels(n_flat, bx, bx1, by, by1, all_in, edges, offsets, full_mask, rows, li,
                                       n_samples)
                 if n_flat >= LANES:
@@ -382,20 +405,74 @@ def _tile(tile, bins, tris, samples, fb, state, sampler, tex, lanes, n_samples, 
             _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples)
 
 
+@numba.njit(error_model="numpy")
+def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lanes, n_samples):
+    """One 64x64 tile of a textured draw: as `_flat_tile`, but the blocks
+    start at even pixels (whole 2x2 quads, for the texture derivatives), the
+    covered quads are listed (`softras.kernels.rasterize._list_quads`, or
+    every quad of a block inside all edges) and each block's quads are
+    shaded at once (`_textured_block`).  Arguments as `_flat_tile`, plus the
+    texture's `Sampler` and `Texels` tex."""
+    numba.literally(n_samples)
+    lf, li = lanes.lf, lanes.li
+    offsets, depth = samples.offsets, fb.depth
+    bin_start, bin_tri, tri_i, bbox = bins.start, bins.tri, tris.i, tris.bbox
+    full_mask = (1 << n_samples) - 1
+    box = _sample_box(offsets)
+    for j in range(bin_start[tile], bin_start[tile + 1]):
+        t = bin_tri[j]
+        edges = _edges(tri_i, t)
+        x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
+        for block_y in range(y_start & -2, y_end + 1, BLOCK):
+            by = max(block_y, y_start)
+            by1 = min(block_y + BLOCK - 1, y_end)
+            for block_x in range(x_start & -2, x_end + 1, BLOCK):
+                bx = max(block_x, x_start)
+                bx1 = min(block_x + BLOCK - 1, x_end)
+                outside, all_in = _block_test(edges, bx * 256 + box[0], bx1 * 256 + box[1],
+                                              by * 256 + box[2], by1 * 256 + box[3])
+                if outside:
+                    continue
+                if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
+                    n = _list_whole_block(bx, by, full_mask, lf, li)
+                else:
+                    n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples)
+                if n:
+                    _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_samples)
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _sample_box(offsets):
+    """The extreme sample offsets (1/256 px) of a pixel: (min x, max x, min y,
+    max y), to test a block's corner samples (`_block_test`)."""
+    return offsets[:, 0].min(), offsets[:, 0].max(), offsets[:, 1].min(), offsets[:, 1].max()
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _tile_box(tile, tiles_x, bbox, t, depth):
+    """Triangle t's pixel bounding box (its bbox row) within the tile: first
+    and last column, first and last row."""
+    height, width = depth.shape[0], depth.shape[1]
+    tx0 = (tile % tiles_x) * TILE
+    ty0 = (tile // tiles_x) * TILE
+    return (max(bbox[t, 0], tx0), min(bbox[t, 1], min(tx0 + TILE, width) - 1),
+            max(bbox[t, 2], ty0), min(bbox[t, 3], min(ty0 + TILE, height) - 1))
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples):
     """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
     fragments (`softras.pipeline.fragment.shade_unlit` colours), as
     `softras.pipeline.render._render_pass` does them.
     Depth-test, shade and write the n lanes (covered pixels of one
-    untextured triangle, listed by `_tile` with pixel and coverage mask):
+    untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
     depths (vectorised), the depth test keeping the lanes with a passed
     sample (scalar, without branches), perspective weights and colour bytes
     (vectorised), the writes (scalar).
 
     The arrays one by one, not as `Triangles`, `Samples`, `Framebuffer` and
     `LaneBuffers` records: this runs about once per small triangle, and the
-    records' arrays taken out here cost reference counts (see `_tile`);
+    records' arrays taken out here cost reference counts (see `_flat_tile`);
     state : the `DrawState` (scalars: free)."""
     depth_func, write_z = state.depth_func, state.write_z
     _lane_depths(n, t, tri_f, positions, li, n_samples)
@@ -410,15 +487,15 @@ def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, state, lf, l
         lf[_LF_CY, kept] = py + 0.5
         kept += p != 0
     _lane_weights(kept, t, tri_f, lf, uv, False)
-    _lane_words(kept, t, colors, lf, li, False)
+    _lane_words(kept, t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(error_model="numpy", inline="always")
 def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_samples):
     """`softras.pipeline.texture.sample` and `softras.pipeline.ops.apply_fragments`
     of a textured triangle's fragments, as `softras.pipeline.render._render_pass`
-    does them.  Shade the n lanes (n / 4 quads, listed by `_tile` with pixel,
+    does them.  Shade the n lanes (n / 4 quads, listed by `_textured_tile` with pixel,
     centre and coverage) of one textured triangle in one 8x8 block.
 
     Per quad the top-left, top-right and bottom-left lanes give the texture
@@ -427,7 +504,10 @@ def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_sampl
     every lane's own (s, t) is its pixel's.  Lanes outside the triangle are
     the quad's helper pixels: computed, never written.  With ``state.plain``
     (`plain_colors`) at one sample the filtered texel's bytes are the
-    fragment's colour word."""
+    fragment's colour word.
+
+    Inlined into `_textured_tile`: a call per block, with the records'
+    arrays counted at each, made the 1024^2 floor 16 % slower."""
     texels, texels32, table = tex.bytes, tex.words, tex.levels
     lf, li, lu, depth, texel = lanes.lf, lanes.li, lanes.lu, fb.depth, lanes.texel
     depth_func, write_z = state.depth_func, state.write_z
@@ -493,7 +573,7 @@ def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_sampl
     # The fragment colour as llvmpipe's bytes, blended and written
     # (`softras.pipeline.ops.apply_fragments`).
     if not words:
-        _lane_words(n, t, tris.colors, lf, li, True)
+        _lane_words(n, t, tris.colors, lf, li, True, state.flat)
     _write_lanes(n, li, fb.color32, state.blend, n_samples)
 
 

@@ -120,18 +120,25 @@ def _lane_weights(n, t, tri_f, lf, uv, textured):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _lane_words(n, t, colors, lf, li, textured):
+def _lane_words(n, t, colors, lf, li, textured, flat):
     """The fragment colour of the n lanes as llvmpipe's bytes
     (`softras.pipeline.fragment.shade_unlit` then `softras.pipeline.ops.unorm8`,
     `_shade_word`: triangle t's corner colours under the _LF_W weights, times
     the _LF_TEX texel when textured), one RGBA8 word each into the _LI_WORD
-    row (a vectorised loop)."""
+    row (a vectorised loop).
+
+    flat: the triangle's colour is not interpolated
+    (`softras.pipeline.render.flat_colors`): it is corner 0's, and corners 1
+    and 2 hold zeros (`softras.kernels.draw.flat_corner_colors`), so the
+    weights (1, 0, 0) give back corner 0's colour exactly, 1 c + 0 0 + 0 0 =
+    c, whatever c (infinite or NaN included)."""
     corner_colors = _corner_colors(colors, t)
     for l in range(n):
         texel = RGBA(1.0, 1.0, 1.0, 1.0)
         if textured:
             texel = RGBA(lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l])
-        li[_LI_WORD, l] = _shade_word((lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l]), corner_colors, texel)
+        w = (1.0, 0.0, 0.0) if flat else (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
+        li[_LI_WORD, l] = _shade_word(w, corner_colors, texel)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

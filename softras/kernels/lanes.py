@@ -6,7 +6,7 @@ compiled path keeps at most one block's worth of them, per thread, in two
 small arrays, float64 ``lf`` (_NLF, 2 * LANES) and int64 ``li``
 (_LI_Z + samples, 2 * LANES), one column per lane.
 
-Pixels are shaded in "lanes": `softras.kernels.draw._tile` lists an
+Pixels are shaded in "lanes": `softras.kernels.draw._flat_tile` (or `_textured_tile`) lists an
 untextured triangle's covered pixels (shaded from LANES of them on,
 `_flat_block`) or a textured triangle's covered 2x2 quads of one 8x8 block (4
 lanes per quad, up to 64, `_textured_block`); then each step runs as one loop

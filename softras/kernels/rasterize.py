@@ -4,8 +4,8 @@ Mirrors `softras.pipeline.rasterize.rasterize` in gl precision: the integer
 edge functions ``E_i = A_i (X - X0_i) + B_i (Y - Y0_i)`` of
 `softras.pipeline.setup.edge_equations` with the fill rule, tested per sample,
 and the same exact early-out / early-in test per 8x8 block (E is linear: its
-extremes over a block are at the block's corner samples).  The tile kernel
-(`softras.kernels.draw._tile`) walks the blocks; nothing here materialises a
+extremes over a block are at the block's corner samples).  The tile kernels
+(`softras.kernels.draw._flat_tile`, `_textured_tile`) walk the blocks; nothing here materialises a
 fragment list.
 
 Binning (`_bin`) has no readable counterpart: the visible triangles are
