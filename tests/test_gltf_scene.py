@@ -291,6 +291,12 @@ def _bad_files(folder):
     def texcoord1(doc):
         doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] = 1
 
+    def huge(doc):
+        doc["nodes"][1]["translation"] = [10 ** 400, 0, 0]
+
+    def cutoff(doc):
+        doc["materials"][0].update(alphaMode="MASK", alphaCutoff=1.0000000000000002)
+
     missing = variant("missing.gltf", lambda doc: None, "file")
     os.remove(folder / "quadrants.png")
     return {
@@ -312,11 +318,15 @@ def _bad_files(folder):
                         "extensions.KHR_lights_punctual.lights[0].type: 'point' lights are not supported"),
         "texcoord_1": (variant("uv1.gltf", texcoord1, "data"),
                        "materials[0].pbrMetallicRoughness.baseColorTexture.texCoord: 1 not supported"),
+        # (the scene format's own number check, `fileio.number_problem`)
+        "huge_number": (variant("huge.gltf", huge, "data"), "nodes[1].translation[0]: number too large"),
+        "cutoff_above_one": (variant("cutoff.gltf", cutoff, "data"),
+                             "materials[0].alphaCutoff: 1.0000000000000002 is out of range [0, 1]"),
     }
 
 
-BAD = ["draco", "extension_required", "index_out_of_range", "missing_texture_file", "point_light", "skin",
-       "texcoord_1", "texture_transform", "triangle_strip", "truncated_glb"]
+BAD = ["cutoff_above_one", "draco", "extension_required", "huge_number", "index_out_of_range", "missing_texture_file",
+       "point_light", "skin", "texcoord_1", "texture_transform", "triangle_strip", "truncated_glb"]
 
 
 def test_the_list_of_bad_files_is_complete(tmp_path):

@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from softras.scene.fileio import BadFile, read_bytes
+from softras.scene.fileio import BadFile, number_problem, read_bytes
 from softras.scene.model import MAX_NODE_DEPTH
 
 COMPONENTS = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
@@ -335,11 +335,11 @@ def node_matrix(node: dict, where: str = "a node") -> np.ndarray:
 
 
 def number(value, where: str, lo: float = -math.inf, hi: float = math.inf) -> float:
-    """A finite JSON number in [lo, hi] (not a boolean)."""
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-        raise BadFile(f"{where}: expected a number, got {value!r}")
-    if not lo <= value <= hi:
-        raise BadFile(f"{where}: {value:g} is out of range [{lo:g}, {hi:g}]")
+    """A finite JSON number in [lo, hi] (not a boolean): the scene format's
+    check (`softras.scene.fileio.number_problem`)."""
+    problem = number_problem(value, lo, hi)
+    if problem is not None:
+        raise BadFile(f"{where}: {problem}")
     return float(value)
 
 

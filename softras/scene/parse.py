@@ -51,13 +51,13 @@ import difflib
 import itertools
 import json
 import math
-import numbers
 import os
 from typing import Any
 
 import numpy as np
 
 from softras.scene import displace, gltf, meshes, meshfiles, texels
+from softras.scene.fileio import is_number, number_problem, type_name
 from softras.scene.model import (BLEND_MODES, CULL_MODES, DEFAULT_TOLERANCE, DEPTH_FUNCTIONS, FORMAT_VERSION, FRAMEBUFFERS,
                                  FRONT_FACES,
                                  LIGHT_TYPES, MAG_FILTERS, MAX_NODE_DEPTH, MAX_PIXELS, MAX_SIDE, MAX_TEXELS,
@@ -68,54 +68,17 @@ from softras.scene.model import (BLEND_MODES, CULL_MODES, DEFAULT_TOLERANCE, DEP
 from softras.scene.transforms import (cross3, frustum_matrix, look_at_matrix, orthographic_matrix,
                                       perspective_matrix, rotate_matrix, scale_matrix, translate_matrix)
 
-def _is_number(value) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
-
-
 def _is_int(value) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
 
-def _type_name(value) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, (bool, np.bool_)):
-        return "a boolean"
-    if isinstance(value, str):
-        return f"the string {value!r}" if len(value) <= 40 else "a string"
-    if isinstance(value, dict):
-        return "an object"
-    if isinstance(value, (list, tuple)):
-        return f"a list of {len(value)}"
-    return repr(value) if _is_number(value) else type(value).__name__
-
-
 def _number(value, place: str, lo: float = -math.inf, hi: float = math.inf) -> float:
-    """A finite number in [lo, hi] (ints and floats; booleans are not numbers)."""
-    if not _is_number(value):
-        raise SceneError(place, f"expected a number, got {_type_name(value)}")
-    try:
-        value = float(value)
-    except OverflowError:
-        raise SceneError(place, "number too large") from None
-    if not math.isfinite(value):
-        raise SceneError(place, f"expected a finite number, got {value}")
-    if not lo <= value <= hi:
-        shown = _shown(value)
-        if hi == math.inf:
-            raise SceneError(place, f"must be at least {lo:g}, got {shown}")
-        if lo == -math.inf:
-            raise SceneError(place, f"must be at most {hi:g}, got {shown}")
-        raise SceneError(place, f"{shown} is out of range [{lo:g}, {hi:g}]")
-    return value
-
-
-def _shown(value: float) -> str:
-    """``value`` as short as it reads back exactly: "1" for 1.0, but
-    "1.0000000000000002" for the float just above 1 (which %g shows as "1",
-    an error message saying "1 is out of range [0, 1]")."""
-    short = f"{value:g}"
-    return short if float(short) == value else repr(value)
+    """A finite number in [lo, hi] (ints and floats; booleans are not numbers):
+    `softras.scene.fileio.number_problem`, the check the glTF reader shares."""
+    problem = number_problem(value, lo, hi)
+    if problem is not None:
+        raise SceneError(place, problem)
+    return float(value)
 
 
 def _positive(value, place: str) -> float:
@@ -127,7 +90,7 @@ def _positive(value, place: str) -> float:
 
 def _integer(value, place: str, lo: int, hi: int) -> int:
     if not _is_int(value):
-        raise SceneError(place, f"expected an integer, got {_type_name(value)}")
+        raise SceneError(place, f"expected an integer, got {type_name(value)}")
     if not lo <= value <= hi:
         raise SceneError(place, f"{value} is out of range [{lo}, {hi}]")
     return int(value)
@@ -135,19 +98,19 @@ def _integer(value, place: str, lo: int, hi: int) -> int:
 
 def _bool(value, place: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
-        raise SceneError(place, f"expected true or false, got {_type_name(value)}")
+        raise SceneError(place, f"expected true or false, got {type_name(value)}")
     return bool(value)
 
 
 def _string(value, place: str) -> str:
     if not isinstance(value, str):
-        raise SceneError(place, f"expected a string, got {_type_name(value)}")
+        raise SceneError(place, f"expected a string, got {type_name(value)}")
     return value
 
 
 def _choice(value, place: str, choices) -> str:
     if not isinstance(value, str) or value not in choices:
-        raise SceneError(place, f"expected one of {', '.join(choices)}; got {_type_name(value)}")
+        raise SceneError(place, f"expected one of {', '.join(choices)}; got {type_name(value)}")
     return value
 
 
@@ -155,7 +118,7 @@ def _list(value, place: str) -> list:
     if isinstance(value, np.ndarray):
         return value.tolist()
     if not isinstance(value, (list, tuple)):
-        raise SceneError(place, f"expected a list, got {_type_name(value)}")
+        raise SceneError(place, f"expected a list, got {type_name(value)}")
     return list(value)
 
 
@@ -220,8 +183,8 @@ def _array(value, width: int | tuple[int, ...], place: str, lo: float = -math.in
         if len(row) != row_width:
             raise SceneError(f"{place}[{i}]", f"expected {row_width} numbers like {place}[0], got {len(row)}")
         for k, x in enumerate(row):
-            if type(x) is not float and type(x) is not int and not _is_number(x):
-                raise SceneError(f"{place}[{i}][{k}]", f"expected a number, got {_type_name(x)}")
+            if type(x) is not float and type(x) is not int and not is_number(x):
+                raise SceneError(f"{place}[{i}][{k}]", f"expected a number, got {type_name(x)}")
             try:
                 out[i, k] = x
             except OverflowError:
@@ -259,7 +222,7 @@ def _indices(value, width: int, vertex_count: int, place: str) -> np.ndarray:
             index_place = f"{place}[{g * width + k}]" if flat else group_place
             if not _is_int(index):
                 sub = index_place if flat else f"{group_place}[{k}]"
-                raise SceneError(sub, f"expected an integer index, got {_type_name(index)}")
+                raise SceneError(sub, f"expected an integer index, got {type_name(index)}")
             if not 0 <= index < vertex_count:
                 raise SceneError(index_place, f"index {index} out of range for {vertex_count} positions")
             out[g, k] = index
@@ -351,7 +314,7 @@ def _fast_indices(value, width: int, vertex_count: int) -> np.ndarray | None:
 def _object(value, place: str, allowed, required=()) -> dict:
     """A dict whose keys are all in ``allowed`` and include ``required``."""
     if not isinstance(value, dict):
-        raise SceneError(place, f"expected an object, got {_type_name(value)}")
+        raise SceneError(place, f"expected an object, got {type_name(value)}")
     for key in value:
         if key not in allowed:
             hint = difflib.get_close_matches(str(key), list(allowed), n=1)
@@ -499,7 +462,7 @@ def _decode_image(path: str, place: str) -> np.ndarray:
 def _parse_textures(value, base_dir: str) -> dict[str, Texture]:
     textures = {}
     if not isinstance(value, dict):
-        raise SceneError("textures", f"expected an object of named textures, got {_type_name(value)}")
+        raise SceneError("textures", f"expected an object of named textures, got {type_name(value)}")
     for name, entry in value.items():
         place = f"textures.{name}"
         if not name:
@@ -768,7 +731,7 @@ def _depth_test(value, place: str) -> str | None:
     if isinstance(value, bool):
         return "less" if value else None
     if not isinstance(value, str) or value not in DEPTH_FUNCTIONS:
-        raise SceneError(place, f"expected false, true or one of {', '.join(DEPTH_FUNCTIONS)}; got {_type_name(value)}")
+        raise SceneError(place, f"expected false, true or one of {', '.join(DEPTH_FUNCTIONS)}; got {type_name(value)}")
     return value
 
 
@@ -861,12 +824,12 @@ def scene_from_dict(data: Any, source: str = "<dict>", base_dir: str | None = No
     data = _object(data, "scene", _TOP_KEYS, required=("softras_scene", "width", "height"))
     version = data["softras_scene"]
     if not _is_int(version) or version != FORMAT_VERSION:
-        raise SceneError("softras_scene", f"unsupported format version {_type_name(version)} (this softras reads version {FORMAT_VERSION})")
+        raise SceneError("softras_scene", f"unsupported format version {type_name(version)} (this softras reads version {FORMAT_VERSION})")
     description = _string(data["description"], "description") if "description" in data else ""
     width, height = _parse_size(data)
     samples = data.get("samples", 1)
     if not _is_int(samples) or samples not in (1, 4):
-        raise SceneError("samples", f"expected 1 or 4, got {_type_name(samples)}")
+        raise SceneError("samples", f"expected 1 or 4, got {type_name(samples)}")
     background = _color(data.get("background", [0, 0, 0, 1]), "background")
     camera = _parse_camera(data.get("camera", {}), width, height)
     if not (np.isfinite(camera.view).all() and np.isfinite(camera.projection).all()):
@@ -972,6 +935,6 @@ def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
             return gltf.load_gltf_scene(path)
         data = _read_json(path)
         if not isinstance(data, dict):
-            raise SceneError(path, f"the top level must be a JSON object, got {_type_name(data)}")
+            raise SceneError(path, f"the top level must be a JSON object, got {type_name(data)}")
         return scene_from_dict(data, source=path, base_dir=os.path.dirname(os.path.abspath(path)))
     raise SceneError("scene", f"expected a file path, a dict or a Scene, got {type(source).__name__}")
