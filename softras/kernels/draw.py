@@ -39,8 +39,8 @@ Phong shading, anisotropic textures, alpha-tested materials, other
 sample counts or clipping policies...).  Gouraud and flat shading are drawn
 here, lit by the stages' own functions in numpy: Gouraud per vertex
 (`softras.pipeline.render.vertex_base_colors`), its lit colours interpolated
-as vertex colours are; flat per triangle (`flat_corner_colors`), its colour
-taken as it is.  ``front_face="cw"`` is drawn here as the
+as vertex colours are; flat per visible triangle (`flat_corner_colors`),
+its colour taken as it is.  ``front_face="cw"`` is drawn here as the
 swapped cull mode (`softras.pipeline.setup.window_cull`).  A draw pays
 only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
@@ -183,12 +183,12 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
                      _scratch.take("uv", (n if textured else 1, 3, 2), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
     _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs), tris, n_threads, _scratch)
-    flat = material.shading == "flat"
-    if flat:
-        tris.colors[...] = flat_corner_colors(scene, draw, base)[clipped.source]
     visible = np.flatnonzero(tris.i[:, _I_VIS])
     if len(visible) == 0:
         return
+    flat = material.shading == "flat"
+    if flat:                # (only the visible triangles are binned: the others' colours are never read)
+        tris.colors[visible] = flat_corner_colors(scene, draw, base, clipped.source[visible])
     sampler, texels = NO_TEXTURE
     if textured:
         sampler, texels = texture_tables(texture.prepare(scene.textures[material.texture]), texture_fixed_point)
@@ -205,23 +205,20 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
                n_threads)
 
 
-def flat_corner_colors(scene: Scene, draw, base: np.ndarray) -> np.ndarray:
-    """Flat shading's colour of each of the draw's triangles, as the kernels
-    read it: (M, 3, 4), the colour of `softras.pipeline.render.flat_colors`
-    (face normal, centroid and provoking vertex of the source triangle,
-    straight) at corner 0 and zeros at corners 1 and 2
+def flat_corner_colors(scene: Scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Flat shading's colour of the draw's mesh triangles ``triangles`` (K,)
+    as the kernels read it: (K, 3, 4), the colour of
+    `softras.pipeline.render.flat_colors` (face normal, centroid and
+    provoking vertex, straight) at corner 0 and zeros at corners 1 and 2
     (`softras.kernels.interpolate._lane_words` with ``flat``).  base : (V, 4)
-    the straight vertex colours times the material's.
-
-    The stages light the set-up triangles' source triangles; this lights
-    every mesh triangle once, row by row with the same numpy operations, and
-    a clipped triangle takes its source's row."""
+    the straight vertex colours times the material's.  The stages light the
+    same source triangles of the visible set-up triangles, row by row with
+    the same numpy operations."""
     mesh = draw.mesh
     world = vertex.world_positions(mesh.positions, draw.world)
-    eye = np.linalg.inv(scene.camera.view)[:3, 3]
-    out = np.zeros((len(mesh.indices), 3, 4))
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):   # (degenerate triangles: never drawn)
-        out[:, 0] = flat_colors(world, mesh.indices, base, eye, scene.lights, draw.material)[0]
+    out = np.zeros((len(triangles), 3, 4))
+    out[:, 0] = flat_colors(world, mesh.indices[triangles], base, vertex.eye_position(scene.camera.view),
+                            scene.lights, draw.material)[0]
     return out
 
 

@@ -283,7 +283,7 @@ def vertex_base_colors(scene: Scene, draw) -> np.ndarray:
     if draw.material.shading != "gouraud":
         return base
     world = vertex.world_positions(draw.mesh.positions, draw.world)
-    eye = np.linalg.inv(scene.camera.view)[:3, 3]
+    eye = vertex.eye_position(scene.camera.view)
     lit = fragment.blinn_phong(base[:, :3], world, vertex.world_normals(draw.mesh.normals, draw.world),
                                eye, scene.lights, draw.material)
     return np.concatenate([lit, base[:, 3:]], axis=1)
@@ -342,7 +342,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         shading = material.shading
         if shading in ("flat", "phong"):                       # (Gouraud is lit already)
             world = vertex.world_positions(mesh.positions, draw.world)
-            eye = np.linalg.inv(scene.camera.view)[:3, 3]
+            eye = vertex.eye_position(scene.camera.view)
 
         t = frags.tri
         centres = np.stack([frags.x + 0.5, frags.y + 0.5], axis=1)

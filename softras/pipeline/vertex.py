@@ -77,3 +77,9 @@ def world_tangents(tangents: np.ndarray, world: np.ndarray) -> np.ndarray:
     out[:, :3] = out[:, :3] @ world[:3, :3].T
     out[:, 3] *= -1.0 if np.linalg.det(world[:3, :3]) < 0 else 1.0
     return out
+
+
+def eye_position(view: np.ndarray) -> np.ndarray:
+    """The camera's position in world space (3,): the translation of the
+    inverse of the (4, 4) view matrix (lighting's eye, ``V = normalize(eye - P)``)."""
+    return np.linalg.inv(view)[:3, 3]
