@@ -323,3 +323,32 @@ def test_cli_shows_glref_value(capsys, name, pixel):
     assert data["final"]["resolved"] == data["softras_image"] == soft[y, x].tolist()
     assert main(["explain", path, "--pixel", pixel]) == 0
     assert "glref:   (" in capsys.readouterr().out
+
+
+def test_alpha_tested_fragments_are_explained_as_discarded():
+    """A MASK material's fragments below the cutoff write nothing: the
+    explained value is still the rendered pixel, and at least one checked
+    pixel shows a discarded fragment (no sample operations)."""
+    scene = softras.load_scene(SCENES / "gltf_alpha_modes.gltf")
+    image = softras.render(scene)
+    discarded = 0
+    for x, y in pixels_to_check(image, seed=3) + [(x, y) for y in range(0, scene.height, 9)
+                                                  for x in range(0, scene.width, 9)]:
+        history = explain_pixel(scene, x, y)
+        assert history["final"]["resolved"] == image[y, x].tolist(), (x, y)
+        for draw in history["draws"]:
+            for p in draw["primitives"]:
+                if p["alpha_test"] is not None and not p["alpha_test"]["kept"]:
+                    discarded += 1
+                    assert p["samples_ops"] == []
+    assert discarded > 0
+
+
+def test_culled_triangles_face_by_the_scenes_front_face():
+    """With ``front_face`` "cw" and back-face culling, a counter-clockwise
+    triangle is culled as back-facing, and the history says so."""
+    tri = {"name": "ccw", "mesh": {"positions": [[2, 2, 0], [12, 2, 0], [2, 10, 0]]}, "cull": "back"}
+    scene = softras.load_scene(dict(pixel_scene([tri]), front_face="cw"))
+    history = explain_pixel(scene, 4, 4)
+    culled = [m for draw in history["draws"] for m in draw["near_misses"] if m["status"].startswith("culled")]
+    assert culled and all(m["front_facing"] is False for m in culled), culled

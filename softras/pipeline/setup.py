@@ -184,17 +184,16 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, precision: str
     x, y = raster[..., 0], raster[..., 1]
     # Twice the signed area, counter-clockwise positive (exact in int64 for gl).
     area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
-    if front_face not in FRONT_FACES:
-        raise ValueError(f"unknown front_face {front_face!r}")
     counter_clockwise = area > 0
-    front = counter_clockwise if front_face == "ccw" else area < 0
     keep = area != 0
-    if cull == "back":
-        keep &= front
-    elif cull == "front":
-        keep &= ~front
-    elif cull != "none":
+    ccw_cull = window_cull(cull, front_face)        # (the kernels' cull mode too)
+    if ccw_cull == "back":
+        keep &= counter_clockwise
+    elif ccw_cull == "front":
+        keep &= ~counter_clockwise
+    elif ccw_cull != "none":
         raise ValueError(f"unknown cull mode {cull!r}")
+    front = counter_clockwise if front_face == "ccw" else area < 0
 
     index = np.nonzero(keep)[0]
     corner = np.tile(np.arange(3), (len(index), 1))

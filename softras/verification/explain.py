@@ -323,7 +323,8 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
     culled = []
     if draw.cull != "none":
         every = setup.setup_triangles(clipped.clip, width, height, precision=precision, cull="none",
-                                      offsets=offsets, unit=unit, generated=clipped.generated)
+                                      offsets=offsets, unit=unit, generated=clipped.generated,
+                                      front_face=scene.front_face)
         kept = set(tris.triangle.tolist())
         cand = [k for k in in_box(every) if int(every.triangle[k]) not in kept]
         if cand:
@@ -341,7 +342,7 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
     shading = material.shading
     if shading != "unlit":
         world = vertex.world_positions(mesh.positions, draw.world)
-        eye = np.linalg.inv(scene.camera.view)[:3, 3]
+        eye = vertex.eye_position(scene.camera.view)
     if shading == "gouraud":
         unit_normals = vertex.world_normals(mesh.normals, draw.world)
         vertex_base = base
@@ -396,6 +397,9 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
                             else "analytic at the pixel centre")
                        for f in range(len(t))]
     rgba = fragment.shade_unlit(colors, np.ones(4), texel)
+    kept = np.ones(len(t), bool)
+    if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
+        kept = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
 
     primitives = []
     for f, k in enumerate(t):
@@ -409,7 +413,9 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
             "material_color": material.color,
             "texture": tex_history[f],
             "color": rgba[f],
-            "samples_ops": buffer.apply(int(frags.mask[f]), z[f], rgba[f], draw),
+            "alpha_test": (None if material.alpha_cutoff is None
+                           else {"cutoff": material.alpha_cutoff, "kept": bool(kept[f])}),
+            "samples_ops": buffer.apply(int(frags.mask[f]), z[f], rgba[f], draw) if kept[f] else [],
         })
         primitives.append(entry)
     missed = [_triangle_geometry(tris, k, clipped, mesh, offsets, unit, wx, wy, gl,
@@ -517,7 +523,7 @@ def _explain_draws(scene, wx, wy, precision, policy, positions, offsets, unit, f
         mesh = draw.mesh
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
         clip_pos = vertex.to_clip(mesh.positions, mvp, precision)
-        vertex_colors = mesh.colors if mesh.colors is not None else np.ones((len(mesh.positions), 4))
+        vertex_colors = pipeline.vertex_colors(mesh)
         if mesh.primitive == "lines":
             covered, near = _line_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, policy,
                                         positions, buffer)
@@ -720,6 +726,11 @@ def _fragment_lines(p: dict, gl: bool) -> list[str]:
                        f"{_f(mapping['interpolated_normal'])} -> mapped {_f(mapping['mapped_normal'])}")
         out.extend(_light_lines(sh, "fragment"))
     out.append(f"  fragment colour (premultiplied) {_f(p['color'])}")
+    alpha_test = p.get("alpha_test")
+    if alpha_test is not None:
+        out.append(f"  alpha test: alpha {p['color'][3]:.6f} " + (">=" if alpha_test["kept"] else "<")
+                   + f" cutoff {alpha_test['cutoff']:g} -> "
+                   + ("kept" if alpha_test["kept"] else "DISCARDED (no sample written)"))
     for e in p["samples_ops"]:
         if e["depth_func"] == "disabled":
             depth = "depth test disabled"
