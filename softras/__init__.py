@@ -19,9 +19,18 @@ down (tests/test_layers.py).
 
 from __future__ import annotations
 
-from softras.scene import Scene, SceneError, load_scene
-
 __all__ = ["Scene", "SceneError", "load_scene", "render", "compare", "verify"]
+
+
+def __getattr__(name: str):
+    """``Scene``, ``SceneError`` and ``load_scene``, imported from
+    `softras.scene` on first use: importing softras alone (as pytest does in
+    every session for the plugin, `softras.pytest_plugin`) does not load
+    numpy and numba."""
+    if name in ("Scene", "SceneError", "load_scene"):
+        from softras import scene
+        return getattr(scene, name)
+    raise AttributeError(f"module 'softras' has no attribute {name!r}")
 
 
 def render(scene, backend: str = "soft", **options):

@@ -315,8 +315,9 @@ def pytest_pyfunc_call(pyfuncitem):
     marker = pyfuncitem.get_closest_marker("softras_golden")
     if marker is None or inspect.iscoroutinefunction(pyfuncitem.obj):
         return None
-    parameters = inspect.signature(pyfuncitem.obj).parameters
-    scene = pyfuncitem.obj(**{name: pyfuncitem.funcargs[name] for name in parameters})
+    # (The fixtures the test asks for, as pytest's own pytest_pyfunc_call
+    # passes them: not every parameter, which may have a default.)
+    scene = pyfuncitem.obj(**{name: pyfuncitem.funcargs[name] for name in pyfuncitem._fixtureinfo.argnames})
     if scene is None:
         pytest.fail("@pytest.mark.softras_golden: the test must return its scene (a file path or a dict)",
                     pytrace=False)
@@ -351,9 +352,9 @@ def pytest_collect_file(file_path, parent):
     folders = parent.config.stash.get(_SCENE_DIRS, [])
     if not folders or file_path.resolve().parent not in folders:
         return None                    # (softras itself is imported only for a scene folder)
-    from softras.scene.parse import SCENE_SUFFIXES
+    from softras.scene.parse import is_scene_file
 
-    if file_path.name.endswith(SCENE_SUFFIXES):
+    if is_scene_file(file_path.name):
         return SceneFile.from_parent(parent, path=file_path)
     return None
 

@@ -357,3 +357,13 @@ def test_cli_exits_2_and_writes_nothing(tmp_path, capsys, case):
     assert captured.err.startswith(f"softras: error: {tmp_path / name}: {reason}"), captured.err
     assert output.read_bytes() == b"previous output"
     assert sorted(os.listdir(tmp_path)) == before
+
+
+def test_a_folder_lists_scene_files_in_any_case(tmp_path):
+    """`parse.folder_scene_files` takes the suffixes `load_scene` reads, in any
+    case (MODEL.GLB loads by name, so a folder lists it too)."""
+    from softras.scene.parse import folder_scene_files
+    for name in ("A.JSON", "b.glb", "MODEL.GLB", "c.Gltf", "notes.txt"):
+        (tmp_path / name).write_text("")
+    (tmp_path / "folder.json").mkdir()
+    assert [os.path.basename(p) for p in folder_scene_files(tmp_path)] == ["A.JSON", "MODEL.GLB", "b.glb", "c.Gltf"]

@@ -262,3 +262,24 @@ def test_check_scene_takes_a_scene_in_memory():
     declared = dict(data, tolerance={"threshold": 9, "max_bad_fraction": 0.5, "min_ssim": 0.5})
     result = check_scene(declared)
     assert result.tolerance_source == "scene" and result.tolerance["threshold"] == 9
+
+
+def test_marked_test_with_a_defaulted_parameter_gets_its_default(project):
+    """``@pytest.mark.softras_golden`` calls the test with the fixtures it asks
+    for, as pytest does: a parameter with a default keeps its default."""
+    (project / "tests" / "test_defaulted.py").write_text(
+        "from pathlib import Path\n\nimport pytest\n\n\n"
+        "@pytest.mark.softras_golden\n"
+        "def test_defaulted(tmp_path, name='triangle'):\n"
+        "    return str(Path(__file__).parents[1] / 'scenes' / f'{name}.json')\n")
+    run = run_pytest(project, "tests/test_defaulted.py")
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "1 passed" in run.stdout
+
+
+def test_loading_the_plugin_does_not_import_numba():
+    """pytest imports the plugin in every session of an environment with
+    softras installed: that costs no numpy or numba until a test uses softras."""
+    code = "import sys, softras.pytest_plugin; print(sorted(m for m in ('numba', 'numpy') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=REPO)
+    assert out.stdout.strip() == "[]", out.stdout

@@ -891,10 +891,16 @@ def _read_json(path: str) -> Any:
 SCENE_SUFFIXES = (".json",) + gltf.SUFFIXES
 
 
+def is_scene_file(name: str) -> bool:
+    """Whether a file name has a scene suffix (`SCENE_SUFFIXES`, any case, as
+    `load_scene` reads them)."""
+    return name.lower().endswith(SCENE_SUFFIXES)
+
+
 def folder_scene_files(folder: str | os.PathLike) -> list[str]:
-    """The scene files of one folder (`SCENE_SUFFIXES`), sorted by name."""
+    """The scene files of one folder (`is_scene_file`), sorted by name."""
     folder = os.fspath(folder)
-    names = sorted(name for name in os.listdir(folder) if name.endswith(SCENE_SUFFIXES))
+    names = sorted(name for name in os.listdir(folder) if is_scene_file(name))
     return [os.path.join(folder, name) for name in names if os.path.isfile(os.path.join(folder, name))]
 
 
