@@ -656,11 +656,12 @@ def _merge_reports(args: argparse.Namespace) -> int:
     """
     from softras.verification import merge, runner
 
-    given = [flag for flag, value, default in (
-        ("PATH", args.paths, []), ("-k", args.patterns, None), ("--shard", args.shard, None),
-        ("--resume", args.resume, None), ("-j", args.jobs, 1), ("--timeout", args.timeout, 300.0),
-        ("--retries", args.retries, 0), ("--max-memory", args.max_memory, None),
-        ("--profile", args.profile, "auto")) if value != default]
+    parser = args.conformance_parser              # (its defaults: an option left alone is not "given")
+    given = (["PATH"] if args.paths else []) + [
+        flag for flag, dest in (("-k", "patterns"), ("--shard", "shard"), ("--resume", "resume"), ("-j", "jobs"),
+                                ("--timeout", "timeout"), ("--retries", "retries"),
+                                ("--max-memory", "max_memory"), ("--profile", "profile"))
+        if getattr(args, dest) != parser.get_default(dest)]
     if given:
         raise CLIError(f"--merge combines finished reports: it takes only --report and --baseline, not "
                        f"{', '.join(given)}")
@@ -927,7 +928,7 @@ def build_parser() -> argparse.ArgumentParser:
                              help="memory budget, e.g. 8G or 50%%: a scene whose estimated need (plus its "
                                   "worker's) is over it is NOT SUPPORTED, refused up front (default 50%% of "
                                   "this machine's memory)")
-    conformance.set_defaults(func=cmd_conformance)
+    conformance.set_defaults(func=cmd_conformance, conformance_parser=conformance)
 
     bench = commands.add_parser(
         "bench", help="measure softras's quality levels against glref (time, ratio, error)",

@@ -195,7 +195,8 @@ def test_merge_takes_no_run_options_and_needs_report(tmp_path, capsys):
     shards = write_shards(tmp_path)
     merging = ["--merge", *map(str, shards), "--report", str(tmp_path / "out")]
     for args in (merging + ["-k", "alpha"], merging + ["--shard", "1/2"], merging + ["-j", "2"],
-                 merging + ["--resume", str(shards[0])], merging + ["--profile", "spec"], [str(tmp_path)] + merging):
+                 merging + ["--resume", str(shards[0])], merging + ["--profile", "spec"], merging + ["--timeout", "10"],
+                 merging + ["--retries", "1"], merging + ["--max-memory", "8G"], [str(tmp_path)] + merging):
         assert main(["conformance", *args]) == 2, args
         assert capsys.readouterr().err.startswith("softras: error: --merge combines finished reports"), args
     assert main(["conformance", "--merge", *map(str, shards)]) == 2

@@ -429,7 +429,7 @@ class _Builder:
                 raise BadFile(f"{place}: {error}") from None
             except UnidentifiedImageError:
                 raise BadFile(f"{place}: not a PNG or JPEG image") from None
-            except (OSError, SyntaxError, EOFError, Image.DecompressionBombError) as error:
+            except (*texels.DECODE_ERRORS, Image.DecompressionBombError) as error:
                 raise BadFile(f"{place}: cannot decode the image: {' '.join(str(error).split())}") from None
         return self.images[index]
 

@@ -454,8 +454,7 @@ def _decode_image(path: str, place: str) -> np.ndarray:
         raise SceneError(place, f"{path} is not an image file (not a PNG or any format Pillow reads)") from None
     except Image.DecompressionBombError as error:
         raise SceneError(place, f"{path}: {error}") from None
-    except (OSError, SyntaxError, ValueError, EOFError) as error:
-        # Pillow reports truncated or corrupt data as any of these.
+    except texels.DECODE_ERRORS as error:
         raise SceneError(place, f"cannot decode {path}: {error}") from None
 
 

@@ -76,6 +76,11 @@ class TooManyTexels(ValueError):
     """An image over the texture size limits; the message is "W x H texels, more than the limit (...)"."""
 
 
+#: The exceptions Pillow reports truncated or corrupt image data with: for
+#: the readers' "cannot decode" message (`parse`, `gltf`).
+DECODE_ERRORS = (OSError, SyntaxError, ValueError, EOFError)
+
+
 def checked_texels(image, max_side: int, max_texels: int) -> np.ndarray:
     """`rgba_texels` of an open Pillow image whose size, from its header, is
     within the limits (``max_side`` a side, ``max_texels`` in all: the scene

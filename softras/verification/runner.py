@@ -83,7 +83,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from softras.verification.conformance import (CONFORMING, CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, VERDICT_NAMES,
+from softras.verification.conformance import (CRASH, FAIL, FLAKY, NOT_SUPPORTED, PASS, TIMEOUT, VERDICT_NAMES,
                                  VERDICT_ORDER, WARN, ConformanceError, SceneResult, counts)
 
 __all__ = [
