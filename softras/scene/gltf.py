@@ -370,11 +370,9 @@ class _Builder:
         if not isinstance(double, bool):
             raise BadFile(f"{place}.doubleSided: expected true or false")
         unlit = "KHR_materials_unlit" in extensions
-        factors = {} if unlit else blinn_phong_from_pbr(color, metallic, roughness)
+        # (An unlit material carries the mapped factors too, unread.)
         material = Material(color=_readonly(color), texture=texture, shading="unlit" if unlit else "phong",
-                            ambient=factors.get("ambient", 0.1), diffuse=factors.get("diffuse", 0.8),
-                            specular=factors.get("specular", 0.5), shininess=factors.get("shininess", 32.0),
-                            alpha_cutoff=cutoff)
+                            alpha_cutoff=cutoff, **blinn_phong_from_pbr(color, metallic, roughness))
         return material, "over" if mode == "BLEND" else "none", "none" if double else "back", opaque
 
     def texture(self, info, where: str, opaque: bool) -> str:

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from softras.verification.conformance import ConformanceError, SceneResult, parse_shard, shard
+from softras.verification.conformance import ConformanceError, SceneResult, _one_line, parse_shard, shard
 from softras.verification.report import FORMAT
 
 __all__ = ["MergeError", "Shard", "Merged", "read_shards", "check_shards", "merged_meta", "write_merged", "merge", "print_merged"]
@@ -49,10 +49,6 @@ __all__ = ["MergeError", "Shard", "Merged", "read_shards", "check_shards", "merg
 
 class MergeError(ConformanceError):
     """Reports that cannot be merged (missing, not reports, not shards of one run); one line."""
-
-
-def _one_line(text: object) -> str:
-    return " ".join(str(text).split())
 
 
 @dataclass
