@@ -9,6 +9,7 @@ the stage it speeds up and names the readable function it must equal:
 - `setup`: `softras.pipeline.setup` (and the corner attributes);
 - `rasterize`: binning and `softras.pipeline.rasterize`'s coverage tests;
 - `interpolate`: `softras.pipeline.interpolate` and the unlit colour;
+- `light`: Phong shading per pixel (`softras.pipeline.fragment.blinn_phong`);
 - `texture`: `softras.pipeline.texture.sample`;
 - `ops`: `softras.pipeline.ops` (depth test, blending, the writes);
 - `lanes`, `rgba8`: the kernels' own representations (lane rows, RGBA8

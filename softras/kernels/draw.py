@@ -35,12 +35,15 @@ The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes and depth as 24-bit integers (`softras.kernels.ops`).
 
 `unsupported(scene, ...)` says why a scene must take the general path (lines,
-Phong shading, anisotropic textures, alpha-tested materials, other
-sample counts or clipping policies...).  Gouraud and flat shading are drawn
-here, lit by the stages' own functions in numpy: Gouraud per vertex
-(`softras.pipeline.render.vertex_base_colors`), its lit colours interpolated
-as vertex colours are; flat per visible triangle (`flat_corner_colors`),
-its colour taken as it is.  ``front_face="cw"`` is drawn here as the
+normal and bump maps, anisotropic textures, alpha-tested materials, other
+sample counts or clipping policies...).  Every shading model is drawn here.
+Gouraud and flat shading are lit by the stages' own functions in numpy:
+Gouraud per vertex (`softras.pipeline.render.vertex_base_colors`), its lit
+colours interpolated as vertex colours are; flat per visible triangle
+(`flat_corner_colors`), its colour taken as it is.  Phong shading lights
+each covered pixel in the kernel (`softras.kernels.light`), from the corner
+world positions and normals that the set-up interpolates like any
+attribute.  ``front_face="cw"`` is drawn here as the
 swapped cull mode (`softras.pipeline.setup.window_cull`).  A draw pays
 only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
@@ -71,6 +74,7 @@ from softras.kernels.interpolate import _lane_depths, _lane_weights, _lane_words
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE, _LI_COV, _LI_IMGF,
                                    _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
                                    _NLF, LANES, LaneBuffers)
+from softras.kernels.light import NO_LIGHTING, _phong_words, phong_inputs
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_whole_block)
@@ -99,8 +103,9 @@ Samples = namedtuple("Samples", ["offsets", "positions"])
 # (depth_write and a depth test), blend mode (`softras.pipeline.ops.BLEND_MODES`),
 # whether the fragment colour is the texel's own (`plain_colors`), and
 # whether the colour is the triangle's, not interpolated (flat shading,
-# `flat_corner_colors`).
-DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat"])
+# `flat_corner_colors`), and whether it is lit per fragment (Phong shading,
+# `softras.kernels.light._phong_words`).
+DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat", "lit"])
 
 
 # ----------------------------------------------------------------------------- dispatch
@@ -123,8 +128,6 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
         material = draw.material
         if draw.mesh.primitive != "triangles":
             return f"{draw.path}: {draw.mesh.primitive}"
-        if material.shading == "phong":
-            return f"{draw.path}: {material.shading} shading"
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
         if material.alpha_cutoff is not None:
@@ -135,6 +138,12 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
                     or tex.mag_filter not in FILTER_CODES or tex.min_filter not in MIN_FILTERS):
                 return f"{draw.path}: texture sampler state"
     return None
+
+
+def variants(scene: Scene, samples: int) -> set[tuple[int, bool]]:
+    """The tile-driver variants (samples, textured) that a scene `unsupported`
+    accepts needs (`softras.kernels.prepare` compiles them)."""
+    return {(samples, draw.material.texture is not None) for draw in scene.draws}
 
 
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
@@ -175,14 +184,18 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     n_threads = numba.get_num_threads()
     material = draw.material
     textured = material.texture is not None
+    lit = material.shading == "phong"
     base = np.ascontiguousarray(vertex_base_colors(scene, draw))            # straight, per vertex
     uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured
            else np.zeros((0, 2)))
+    world_normals, lights, lighting = phong_inputs(scene, draw) if lit else NO_LIGHTING
     tris = Triangles(_scratch.take("tri_f", (n, _NF), np.float64), _scratch.take("tri_i", (n, _NI), np.int64),
                      _scratch.take("bbox", (n, 4), np.int64), _scratch.take("colors", (n, 3, 4), np.float64),
-                     _scratch.take("uv", (n if textured else 1, 3, 2), np.float64))
+                     _scratch.take("uv", (n if textured else 1, 3, 2), np.float64),
+                     _scratch.take("lit", (n if lit else 1, 3, 6), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
-    _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs), tris, n_threads, _scratch)
+    _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs, world_normals), tris, n_threads,
+           _scratch)
     visible = np.flatnonzero(tris.i[:, _I_VIS])
     if len(visible) == 0:
         return
@@ -197,12 +210,12 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
-                      bool(textured and not flat and plain_colors(base)), flat)
+                      bool(textured and not flat and not lit and plain_colors(base)), flat, lit)
     fb = Framebuffer(color.view(np.uint32).reshape(color.shape[:3]), depth)
     draw_tiles = _DRAW_TILES[len(offsets), textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
-               n_threads)
+               lights, tuple(lighting), n_threads)
 
 
 def flat_corner_colors(scene: Scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -289,7 +302,8 @@ def _sources_stamp() -> str:
     are not covered: scripts/mutate.py's comment on numba's cache.)"""
     digest = hashlib.sha256()
     for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+        if path.name != "prepare.py":           # (no compiled code: it only runs the drivers)
+            digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 
 
@@ -303,12 +317,13 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     sources : `_sources_stamp`, in the cache key only."""
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
-    def draw_tiles(bins, tris, samples, fb, state, sampler, tex, n_threads):
+    def draw_tiles(bins, tris, samples, fb, state, sampler, tex, lights, lighting, n_threads):
         """`softras.pipeline.render._render_pass` for one triangle draw after its
         set-up: rasterize, shade and apply every binned triangle (`Bins` of the
         set-up `Triangles`) at the `Samples`, tiles in parallel, into the
-        `Framebuffer` fb with the `DrawState` and the texture's `Sampler` and
-        `Texels` tex.  The records but the sampler come as plain tuples
+        `Framebuffer` fb with the `DrawState`, the texture's `Sampler` and
+        `Texels` tex, and for Phong shading the light table and `Lighting`
+        (`softras.kernels.light`).  The records but the sampler come as plain tuples
         (`softras.kernels.setup.Clipped`) and are named again here.  (A
         parallel loop takes its records apart into its arguments, one level
         deep: a record may hold arrays or scalars, not records.)
@@ -331,10 +346,11 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
             tex_r = Texels(*tex)
             for tile in range(r, n_tiles, n_threads):
                 if textured:
-                    _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, lanes,
-                                   n_samples)
+                    _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, lights,
+                                   lighting, lanes, n_samples)
                 else:
-                    _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lanes, n_samples)
+                    _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes,
+                               n_samples)
 
     return draw_tiles
 
@@ -356,7 +372,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _flat_tile(tile, bins, tris, samples, fb, state, lanes, n_samples):
+def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_samples):
     """One 64x64 tile of an untextured draw: its triangles in draw order; per
     triangle the 8x8 blocks of its bounding box inside the tile with the
     exact early-out / early-in corner test of
@@ -376,7 +392,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lanes, n_samples):
     lf, li, rows = lanes.lf, lanes.li, lanes.rows
     offsets, positions = samples.offsets, samples.positions
     bin_start, bin_tri = bins.start, bins.tri
-    tri_f, tri_i, bbox, colors, uv = tris.f, tris.i, tris.bbox, tris.colors, tris.uv
+    tri_f, tri_i, bbox, colors, uv, lit = tris.f, tris.i, tris.bbox, tris.colors, tris.uv, tris.lit
     color32, depth = fb.color32, fb.depth
     full_mask = (1 << n_samples) - 1
     box = _sample_box(offsets)
@@ -396,14 +412,16 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lanes, n_samples):
                 n_flat = _list_pixels(n_flat, bx, bx1, by, by1, all_in, edges, offsets, full_mask, rows, li,
                                       n_samples)
                 if n_flat >= LANES:
-                    _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples)
+                    _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights,
+                                lighting, lf, li, n_samples)
                     n_flat = 0
         if n_flat:
-            _flat_block(n_flat, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples)
+            _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights, lighting,
+                        lf, li, n_samples)
 
 
 @numba.njit(error_model="numpy")
-def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lanes, n_samples):
+def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, lighting, lanes, n_samples):
     """One 64x64 tile of a textured draw: as `_flat_tile`, but the blocks
     start at even pixels (whole 2x2 quads, for the texture derivatives), the
     covered quads are listed (`softras.kernels.rasterize._list_quads`, or
@@ -435,7 +453,8 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lanes, n_
                 else:
                     n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples)
                 if n:
-                    _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_samples)
+                    _textured_block(n, t, tris, samples, fb, state, sampler, tex, lights, lighting, lanes,
+                                    n_samples)
 
 
 @numba.njit(error_model="numpy", inline="always")
@@ -457,7 +476,8 @@ def _tile_box(tile, tiles_x, bbox, t, depth):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, state, lf, li, n_samples):
+def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights, lighting, lf, li,
+                n_samples):
     """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
     fragments (`softras.pipeline.fragment.shade_unlit` colours), as
     `softras.pipeline.render._render_pass` does them.
@@ -484,12 +504,15 @@ def _flat_block(n, t, tri_f, colors, uv, positions, depth, color32, state, lf, l
         lf[_LF_CY, kept] = py + 0.5
         kept += p != 0
     _lane_weights(kept, t, tri_f, lf, uv, False)
-    _lane_words(kept, t, colors, lf, li, False, state.flat)
+    if state.lit:
+        _phong_words(kept, t, colors, lit, lf, li, lights, lighting, False)
+    else:
+        _lane_words(kept, t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_samples):
+def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lights, lighting, lanes, n_samples):
     """`softras.pipeline.texture.sample` and `softras.pipeline.ops.apply_fragments`
     of a textured triangle's fragments, as `softras.pipeline.render._render_pass`
     does them.  Shade the n lanes (n / 4 quads, listed by `_textured_tile` with pixel,
@@ -569,7 +592,9 @@ def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lanes, n_sampl
                 _sample_lane(l, lf, li, texel, sampler, texels, texels32, table)
     # The fragment colour as llvmpipe's bytes, blended and written
     # (`softras.pipeline.ops.apply_fragments`).
-    if not words:
+    if state.lit:
+        _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, True)
+    elif not words:
         _lane_words(n, t, tris.colors, lf, li, True, state.flat)
     _write_lanes(n, li, fb.color32, state.blend, n_samples)
 

@@ -47,9 +47,11 @@ Clipped = namedtuple("Clipped", ["indices", "source", "slot", "fan_clip", "fan_w
 
 # The set-up triangles, one row per clipped triangle: tables f (T, _NF)
 # float64 and i (T, _NI) int64 (layouts above), pixel box bbox (T, 4) int64
-# (x0, x1, y0, y1 inclusive), corner colours (T, 3, 4) and corner uvs (T, 3,
-# 2), or (1, 3, 2) unused when the draw is untextured.
-Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv"])
+# (x0, x1, y0, y1 inclusive), corner colours (T, 3, 4), corner uvs (T, 3,
+# 2), or (1, 3, 2) unused when the draw is untextured, and for Phong shading
+# the corner world positions and (not unit) world normals (T, 3, 6), or
+# (1, 3, 6) unused.
+Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit"])
 
 
 def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, n_threads, scratch):
@@ -58,7 +60,8 @@ def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris,
     PARALLEL_SETUP triangles (read at call time).  clip_pos : the mesh's
     vertices in clip space (V, 4); clipped : the `Clipped` list;
     vertex_values : (vertex colours (V, 4), vertex uvs (V, 2) or (0, 2)
-    when untextured); tris : the `Triangles` to fill; scratch : the caller's reused buffers
+    when untextured, vertex world positions and normals (V, 6) or (0, 6)
+    when not Phong-shaded); tris : the `Triangles` to fill; scratch : the caller's reused buffers
     (`softras.kernels.draw._Scratch`), for the per-vertex tables."""
     # The window corners of the input vertices, once per vertex (a vertex is
     # shared by ~6 triangles).
@@ -131,14 +134,15 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
 
     Fills their rows of tris (the `Triangles` as a plain tuple): f, i, bbox, and the corner
     attributes (`_corner_values`) of vertex_values = (vertex colours (V, 4),
-    vertex uvs (V, 2) or (0, 2) when untextured); the triangles that the
+    vertex uvs (V, 2) or (0, 2) when untextured, world positions and
+    normals (V, 6) or (0, 6) when not Phong-shaded); the triangles that the
     pipeline drops (zero area, culled, empty box) have tri_i[:, _I_VIS] == 0
     and their other entries undefined.
     """
     vertex_f, vertex_i = window
     indices, source, slot, fan_clip, fan_weights = clipped
-    tri_f, tri_i, bbox, corner_colors, corner_uvs = tris
-    vertex_colors, vertex_uvs = vertex_values
+    tri_f, tri_i, bbox, corner_colors, corner_uvs, corner_lit = tris
+    vertex_colors, vertex_uvs, vertex_lit = vertex_values
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
     wx = np.empty(3)
@@ -215,6 +219,8 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
         _corner_values(vertex_colors, corner_colors, t, clipped, tri_i[t, _I_SWAP])
         if vertex_uvs.shape[0]:
             _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP])
+        if vertex_lit.shape[0]:
+            _corner_values(vertex_lit, corner_lit, t, clipped, tri_i[t, _I_SWAP])
 
 
 @numba.njit(cache=True, inline="always")

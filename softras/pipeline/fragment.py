@@ -49,8 +49,20 @@ def alpha_test(alpha: np.ndarray, cutoff: float, precision: str = "gl") -> np.nd
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
+    """(..., 3) vectors over their lengths ``sqrt((x^2 + y^2) + z^2)`` (numpy's
+    norm sums the squares left to right; the compiled path's
+    `softras.kernels.light._unit` does the same)."""
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of (N, 3) vectors, summed left to right:
+    ``(a0 b0 + a1 b1) + a2 b2``.  (Written out, not ``einsum``: numpy's
+    einsum sums three products in an order of its own, (p0 + p2) + p1 in
+    numpy 2.4, which the compiled path would have to follow version by
+    version.)"""
+    return (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
 
 
 def light_vectors(lights) -> np.ndarray:
@@ -82,9 +94,9 @@ def blinn_phong(base_rgb: np.ndarray, position: np.ndarray, normal: np.ndarray,
     out = material.ambient * base_rgb
     for vector, light in zip(light_vectors(lights), lights):
         to_light = _normalize(vector[None, :3] - position * vector[3])
-        n_dot_l = np.einsum("nk,nk->n", normal, to_light)
+        n_dot_l = _dot(normal, to_light)
         half = _normalize(to_light + view)
-        n_dot_h = np.maximum(np.einsum("nk,nk->n", normal, half), 0.0)
+        n_dot_h = np.maximum(_dot(normal, half), 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             spec = np.power(n_dot_h, material.shininess)
         term = np.asarray(light.color)[None, :] * (material.diffuse * n_dot_l[:, None] * base_rgb
@@ -180,7 +192,7 @@ def perturb_normals(normal: np.ndarray, tangent: np.ndarray, tangent_normal: np.
     """
     n = _normalize(normal)
     t = tangent[:, :3]
-    t = _normalize(t - n * np.einsum("fk,fk->f", n, t)[:, None])
+    t = _normalize(t - n * _dot(n, t)[:, None])
     b = np.where(tangent[:, 3:4] < 0, -1.0, 1.0) * np.cross(n, t)
     x, y, z = (tangent_normal[:, k:k + 1] for k in range(3))
     return _normalize(x * t + y * b + z * n)
