@@ -468,7 +468,13 @@ HEADER = (f"{'scene':22s} {'tris':>8s} {'pixels':>8s} {'level':10s} {'soft ms':>
 
 def run(runs: int = 3, full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2048,
         out_json: str | None = None, out_plot: str | None = None, echo=print) -> dict:
-    """Run the benchmark set, print a table, return (and optionally write) the figures."""
+    """Run the benchmark set, print a table, return (and optionally write) the figures.
+
+    The compiled kernels are compiled before a scene is timed, not left to a
+    background process while the stages draw (``SOFTRAS_COMPILE=wait``
+    unless set, `softras.kernels.prepare`), and the warm-up render of each
+    timing absorbs the compilation."""
+    os.environ.setdefault("SOFTRAS_COMPILE", "wait")
     rows: list[Row] = []
     echo(HEADER)
     series: dict[str, list[tuple[int, float]]] = {"triangles": [], "pixels": []}

@@ -1007,32 +1007,41 @@ _compile_notice_installed = False
 
 
 def announce_compilation(stream=None, *, only_on_terminal: bool = True) -> None:
-    """Print `COMPILE_NOTICE` on ``stream`` (default stderr) the first time,
-    in this process, that numba compiles a kernel -- a cache miss: a fresh
-    clone, an edited kernel, a new numba -- so the first run on a machine does
-    not sit silent for minutes.  A run that loads every kernel from the cache
-    prints nothing.  Installed once per process (numba's ``numba:compile``
-    event, which numba triggers only when it compiles, not when it loads);
-    with ``only_on_terminal`` it prints only when the stream is a terminal, so
-    captured output (tests, pipes, CI logs parsed by tools) is never changed."""
+    """Say once per process, on ``stream`` (default stderr), that kernels are
+    being compiled, so the first run on a machine does not sit silent:
+    `softras.kernels.prepare.NOTICE` when a render leaves the compiled
+    kernels to a background process, else `COMPILE_NOTICE` the first time
+    numba compiles a kernel in this process -- a cache miss: a fresh clone,
+    an edited kernel, a new numba (numba's ``numba:compile`` event, which
+    numba triggers only when it compiles, not when it loads).  A run that
+    loads every kernel from the cache prints nothing.  With
+    ``only_on_terminal`` it prints only when the stream is a terminal, so
+    captured output (tests, pipes, CI logs parsed by tools) is never
+    changed."""
     global _compile_notice_installed
     if _compile_notice_installed:
         return
     from numba.core import event
 
-    class _Notice(event.Listener):
-        said = False
+    from softras.kernels import prepare
 
+    said = []
+
+    def say(text):
+        out = stream if stream is not None else sys.stderr
+        if not said and (not only_on_terminal or out.isatty()):
+            print(text, file=out, flush=True)
+        said.append(text)
+
+    class _Notice(event.Listener):
         def on_start(self, ev):
-            out = stream if stream is not None else sys.stderr
-            if not self.said and (not only_on_terminal or out.isatty()):
-                print(COMPILE_NOTICE, file=out, flush=True)
-            self.said = True
+            say(COMPILE_NOTICE)
 
         def on_end(self, ev):
             pass
 
     event.register("numba:compile", _Notice())
+    prepare.announce = say
     _compile_notice_installed = True
 
 

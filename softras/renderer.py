@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from softras.kernels import draw as kernels
+from softras.kernels import prepare
 from softras.pipeline import ops
 from softras.pipeline import render as stages
 from softras.scene import Scene, load_scene
@@ -31,6 +32,9 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     texture_fixed_point, texture_filter, texture_bounds, tie_rule), plus
     fast_path : let `softras.kernels` render the scenes they support (the
     same bytes, from one fused kernel per draw); False: always the stages.
+    While the kernels a scene needs are not compiled yet, the stages draw
+    it and a background process compiles them, or they are compiled first
+    with ``SOFTRAS_COMPILE=wait`` (`softras.kernels.prepare`).
     """
     job = stages.Job.of(scene, precision=precision, samples=samples, pattern=pattern, seed=seed,
                         resolve_filter=resolve_filter, framebuffer=framebuffer, clipping=clipping,
@@ -44,6 +48,15 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
             and texture_bounds is None and tie_rule == "left_bottom"
             and kernels.unsupported(scene, precision=precision, samples=len(job.positions),
                                     clipping=clipping) is None)
+    if fast and not prepare.ensure(prepare.variants(scene, len(job.positions))):
+        # The kernels are being compiled in the background (`softras.kernels.prepare`):
+        # the stages draw this scene, unless their larger sample buffers refuse it.
+        try:
+            stages.check_sample_memory(scene, len(job.positions), stages.SAMPLE_BYTES)
+            fast = False
+        except ValueError:
+            for variant in prepare.variants(scene, len(job.positions)):
+                prepare.prepare(variant)
     if not fast:
         return stages.resolve(job, stages.render_samples(scene, job))
     stored = kernels.render_samples(scene, job.positions, texture_fixed_point=texture_fixed_point,

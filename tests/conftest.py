@@ -17,6 +17,12 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "scenes"
 
+# The tests check the compiled kernels against the stages, so a render must
+# not fall back to the stages while they compile in the background: compile
+# them first (`softras.kernels.prepare`), in this process and in the
+# command-line processes the tests start.
+os.environ["SOFTRAS_COMPILE"] = "wait"
+
 
 def pytest_addoption(parser):
     parser.addoption("--update-golden", action="store_true", default=False,

@@ -13,6 +13,7 @@ import subprocess
 import sys
 
 from softras import cli
+from softras.kernels import prepare
 
 _PROGRAM = r"""
 import io, sys
@@ -58,3 +59,12 @@ def test_nothing_when_nothing_compiles():
 def test_nothing_on_a_stream_that_is_not_a_terminal():
     program = _PROGRAM.replace("def isatty(self):\n        return True", "def isatty(self):\n        return False")
     assert _run(program) == ""
+
+
+def test_a_background_preparation_is_said_once_instead():
+    """A render that leaves the kernels to a background process says so, and
+    the stages' own compilations after it add nothing."""
+    program = _PROGRAM.replace("cli.announce_compilation(out)                # installed once",
+                               "from softras.kernels import prepare\nprepare.announce(prepare.NOTICE)")
+    assert "prepare.announce(prepare.NOTICE)" in program
+    assert _run(program) == prepare.NOTICE + "\n"

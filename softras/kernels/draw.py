@@ -140,12 +140,6 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
     return None
 
 
-def variants(scene: Scene, samples: int) -> set[tuple[int, bool]]:
-    """The tile-driver variants (samples, textured) that a scene `unsupported`
-    accepts needs (`softras.kernels.prepare` compiles them)."""
-    return {(samples, draw.material.texture is not None) for draw in scene.draws}
-
-
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
                    reuse: bool = False) -> np.ndarray:
     """`softras.pipeline.render.render_samples` of a scene that `unsupported`

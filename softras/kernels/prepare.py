@@ -1,0 +1,224 @@
+"""Preparing the compiled kernels: once per machine, in the background or now.
+
+numba compiles the kernels of `softras.kernels.draw` the first time a
+process needs them and keeps them in its on-disk cache; on a fresh clone
+that takes about a minute per tile-driver variant (a sample count, textured
+or not: docs/speed.md, "Compile time").  The readable stages give the same
+bytes (tests/test_fastpath.py) and compile in seconds, so a render need not
+wait: `ensure` either
+
+- "background" (`MODE_BACKGROUND`): when a variant the scene needs is not
+  ready, starts one detached process (``python -m softras.kernels.prepare``,
+  at low priority) that compiles it into numba's cache, and tells the caller
+  to render this scene with the stages; a later render (this process or
+  another) finds the variant ready and takes the kernels; or
+- "wait" (`MODE_WAIT`): compiles the missing variants now, in this process,
+  before the render (tests, benchmarks: anything that must time or check
+  the compiled path).
+
+Either way each variant is compiled by one process at a time (an exclusive
+lock per variant: a second process waits for the first and then loads from
+the cache), by rendering `preparation_scene`, which reaches every kernel of
+the variant (the parallel set-up, the clipper, flat, Gouraud and Phong
+colours, the texture filters), and then marked ready by a file beside the
+lock.  The mark's name holds a digest of softras's kernel sources, numba's
+version and the host CPU: an edit or an upgrade prepares again.  A mark
+without numba's cache files behind it (a cleared cache) costs a compile in
+the render, as before, not a wrong picture.
+
+``SOFTRAS_COMPILE=wait|background`` chooses the mode (default: background;
+tests/conftest.py and `softras bench` wait).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import fcntl
+import functools
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numba
+import numpy as np
+
+MODE_WAIT, MODE_BACKGROUND = "wait", "background"
+MODES = (MODE_WAIT, MODE_BACKGROUND)
+ENV = "SOFTRAS_COMPILE"
+
+
+def mode() -> str:
+    """The preparation mode: ``SOFTRAS_COMPILE`` or "background"; any other
+    value is a ValueError naming the choices."""
+    value = os.environ.get(ENV, MODE_BACKGROUND)
+    if value not in MODES:
+        raise ValueError(f"{ENV}={value!r}: expected one of {', '.join(MODES)}")
+    return value
+
+
+def variants(scene, samples: int) -> set[tuple[int, bool]]:
+    """The tile-driver variants (samples, textured) that a scene which
+    `softras.kernels.draw.unsupported` accepts needs, at ``samples``."""
+    return {(samples, draw.material.texture is not None) for draw in scene.draws}
+
+
+@functools.cache
+def _stamp() -> str:
+    """What the compiled code depends on: the sources of softras's kernels
+    and stages (numba-compiled, inlined into the drivers), numba's version,
+    the host CPU (numba compiles for it)."""
+    import llvmlite.binding as llvm
+
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256(f"{numba.__version__}\0{llvm.get_host_cpu_name()}\0".encode())
+    for path in sorted([*root.glob("kernels/*.py"), *root.glob("pipeline/*.py")]):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def cache_dir() -> Path:
+    """Where the ready marks and locks live: numba's cache directory
+    (``NUMBA_CACHE_DIR``) or the kernels' ``__pycache__``, where numba keeps
+    their compiled code."""
+    if numba.config.CACHE_DIR:
+        return Path(numba.config.CACHE_DIR)
+    return Path(__file__).resolve().parent / "__pycache__"
+
+
+def _mark(variant: tuple[int, bool]) -> Path:
+    samples, textured = variant
+    return cache_dir() / f"softras-ready-{_stamp()}-{samples}{'t' if textured else 'u'}"
+
+
+def ready(variant: tuple[int, bool]) -> bool:
+    """Whether ``variant`` (samples, textured) has been prepared on this machine."""
+    return _mark(variant).exists()
+
+
+@contextlib.contextmanager
+def _locked(variant: tuple[int, bool], blocking: bool = True):
+    """An exclusive lock on preparing ``variant``: yields True when held,
+    False when another process holds it and ``blocking`` is False."""
+    path = _mark(variant).with_suffix(".lock")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def preparation_scene(samples: int, textured: bool) -> dict:
+    """A small scene that reaches every kernel of one variant: lit grids of
+    18432 triangles, over PARALLEL_SETUP of them inside the frustum (the
+    parallel set-up, `softras.kernels.setup.PARALLEL_SETUP`), crossing the
+    near plane (the clipper), drawn unlit, flat, Gouraud and
+    Phong, textured with a mipmapped filter (the lane filter) and a nearest
+    one (the scalar filter) when ``textured``, blended and depth-tested."""
+    from softras.kernels.setup import PARALLEL_SETUP
+
+    cols = 2 * int(np.ceil(np.sqrt(PARALLEL_SETUP / 2)))     # (about half of it is inside the frustum)
+    nodes = []
+    for k, shading in enumerate(("unlit", "flat", "gouraud", "phong")):
+        material = {"shading": shading}
+        if textured:
+            material["texture"] = "linear" if k % 2 else "nearest"
+        nodes.append({"name": shading, "rotate": [-80, 1, 0, 0], "translate": [0.3 * k - 0.45, -0.5, 0],
+                      "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [4, 8]},
+                      "material": material, "blend": "over" if k == 3 else "none"})
+    textures = {name: {"procedural": "checker", "size": [16, 16], "min_filter": name + "_mipmap_linear"
+                       if name == "linear" else name}
+                for name in (("linear", "nearest") if textured else ())}
+    return {"softras_scene": 1, "width": 64, "height": 48, "samples": samples, "textures": textures,
+            "camera": {"projection": "perspective", "fov_y": 60, "near": 0.5, "far": 20,
+                       "eye": [0, 0, 1], "target": [0, 0, 0]},
+            "lights": [{"type": "point", "position": [1, 2, 3]}, {"type": "directional", "direction": [0, -1, 0]}],
+            "nodes": nodes}
+
+
+def prepare(variant: tuple[int, bool]) -> None:
+    """Compile ``variant`` (samples, textured) now unless it is ready: under
+    its lock, render `preparation_scene` on the compiled path, then mark it
+    ready."""
+    if ready(variant):
+        return
+    from softras.kernels import draw
+    from softras.pipeline import sampling
+    from softras.scene import load_scene
+
+    with _locked(variant):
+        if ready(variant):                      # prepared by the process we waited for
+            return
+        samples, textured = variant
+        scene = load_scene(preparation_scene(samples, textured))
+        assert draw.unsupported(scene, precision="gl", samples=samples, clipping=None) is None
+        draw.render_samples(scene, sampling.sample_positions(samples))
+        _mark(variant).touch()
+
+
+# Called with `NOTICE` when a render starts a background preparation (the
+# command line prints it on a terminal); None: say nothing.
+announce = None
+NOTICE = ("softras: compiling the rendering kernels for this machine in the background (about a "
+          "minute, once); until they are ready, softras renders with its readable stages (the same bytes)")
+
+
+def start_background(variants) -> bool:
+    """Start one detached, low-priority process that prepares ``variants``
+    unless another process is preparing them already.  Returns whether one
+    was started."""
+    missing = []
+    for variant in variants:
+        with _locked(variant, blocking=False) as free:
+            if free and not ready(variant):
+                missing.append(variant)
+    if not missing:
+        return False
+    args = [f"{samples}{'t' if textured else 'u'}" for samples, textured in missing]
+    subprocess.Popen([sys.executable, "-m", "softras.kernels.prepare", *args], stdin=subprocess.DEVNULL,
+                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+                     env={**os.environ, ENV: MODE_WAIT})
+    if announce is not None:
+        announce(NOTICE)
+    return True
+
+
+def ensure(variants) -> bool:
+    """Make the compiled kernels of ``variants`` usable for a render, per
+    `mode`.  Returns True when the render may take them (ready, or prepared
+    now in "wait" mode), False when it should use the stages this time (a
+    background process is preparing them)."""
+    variants = sorted(set(variants))
+    if all(ready(v) for v in variants):
+        return True
+    if mode() == MODE_WAIT:
+        for variant in variants:
+            prepare(variant)
+        return True
+    start_background(variants)
+    return False
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m softras.kernels.prepare 1u 4t ...``: prepare the variants
+    (samples, then u untextured or t textured) at low priority."""
+    parser = argparse.ArgumentParser(prog="python -m softras.kernels.prepare", description=main.__doc__)
+    parser.add_argument("variants", nargs="+", help="e.g. 1u (1 sample, untextured) or 4t (4, textured)")
+    args = parser.parse_args(argv)
+    for text in args.variants:
+        prepare((int(text[:-1]), text[-1] == "t"))
+    return 0
+
+
+if __name__ == "__main__":
+    with contextlib.suppress(OSError):
+        os.nice(10)                 # (behind the renders of the process that started it)
+    sys.exit(main())

@@ -1,0 +1,122 @@
+"""Preparing the compiled kernels (softras.kernels.prepare): the stages draw
+while a background process compiles, "wait" compiles first, one process
+compiles a variant at a time, and the preparation scene reaches every kernel."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import softras
+from softras.kernels import draw as fastpath
+from softras.kernels import prepare
+from softras.kernels import setup as k_setup
+from softras.kernels import texture as k_texture
+from softras.pipeline import clip as clip_stage
+from softras.pipeline import render as stages
+from softras.pipeline import texture, vertex
+from softras.renderer import render_scene
+
+SCENE = softras.load_scene(prepare.preparation_scene(1, False))
+
+
+@pytest.fixture
+def fresh_cache(tmp_path, monkeypatch):
+    """Marks and locks in an empty directory: nothing is ready."""
+    monkeypatch.setattr(prepare, "cache_dir", lambda: tmp_path)
+    return tmp_path
+
+
+@pytest.fixture
+def started(monkeypatch):
+    """start_background's processes, recorded instead of started."""
+    calls = []
+
+    def record(variants):
+        calls.append(sorted(variants))
+        return True
+
+    monkeypatch.setattr(prepare, "start_background", record)
+    return calls
+
+
+@pytest.mark.parametrize("textured", [False, True])
+def test_the_preparation_scene_reaches_every_kernel(textured):
+    """Every draw crosses the near plane (the clipper's generated triangles)
+    with at least PARALLEL_SETUP triangles (the parallel set-up); every
+    shading model; textured: a filter of each kind, lanes and scalar."""
+    scene = softras.load_scene(prepare.preparation_scene(4, textured))
+    assert fastpath.unsupported(scene, precision="gl", samples=4, clipping=None) is None
+    assert {d.material.shading for d in scene.draws} == {"unlit", "flat", "gouraud", "phong"}
+    for draw in scene.draws:
+        mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
+        source, slot, _, _ = clip_stage.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"),
+                                                          draw.mesh.indices)
+        assert len(source) >= k_setup.PARALLEL_SETUP, draw.path
+        assert (slot >= 0).any(), f"{draw.path} crosses no clip plane"
+        assert (draw.material.texture is not None) == textured
+    kinds = {k_texture.texture_tables(texture.prepare(tex), True)[0].vectorised for tex in scene.textures.values()}
+    assert kinds == ({0, 1} if textured else set())
+
+
+def test_background_mode_draws_with_the_stages_meanwhile(fresh_cache, started, monkeypatch):
+    """Nothing ready: the stages draw the scene (the same bytes), one
+    background preparation of the scene's variants is started, no mark is
+    written by the render."""
+    monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)
+    image = render_scene(SCENE)
+    assert started == [[(1, False)]]
+    assert not prepare.ready((1, False))
+    assert np.array_equal(image, render_scene(SCENE, fast_path=False))
+
+
+def test_background_mode_waits_when_the_stages_refuse_the_scene(fresh_cache, started, monkeypatch):
+    """A scene whose float64 sample buffers the stages refuse (here: a lower
+    limit) is compiled for now, and drawn by the kernels."""
+    monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)
+    monkeypatch.setattr(stages, "MAX_SAMPLE_BYTES", SCENE.width * SCENE.height * 8)
+    render_scene(SCENE)
+    assert started == [[(1, False)]]
+    assert prepare.ready((1, False))
+
+
+def test_wait_mode_prepares_first_and_marks_ready(fresh_cache, started, monkeypatch):
+    monkeypatch.setenv(prepare.ENV, prepare.MODE_WAIT)
+    textured = softras.load_scene(prepare.preparation_scene(1, True))
+    render_scene(textured, samples=4)
+    assert started == []
+    assert prepare.ready((4, True)) and not prepare.ready((1, True))
+    monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)       # ready: no background process
+    render_scene(textured, samples=4)
+    assert started == []
+
+
+def test_one_process_prepares_a_variant_at_a_time(fresh_cache, monkeypatch):
+    """While another process holds a variant's lock, no second background
+    process is started for it; once free, one is (here: not really started)."""
+    spawned = []
+    monkeypatch.setattr(prepare.subprocess, "Popen", lambda args, **kw: spawned.append(args))
+    with prepare._locked((1, False)) as held:
+        assert held
+        assert not prepare.start_background([(1, False)])
+    assert spawned == []
+    assert prepare.start_background([(1, False), (4, True)])
+    assert spawned[0][-2:] == ["1u", "4t"] and spawned[0][1:3] == ["-m", "softras.kernels.prepare"]
+
+
+def test_the_prepare_command_marks_its_variants(fresh_cache):
+    assert prepare.main(["1u"]) == 0
+    assert prepare.ready((1, False)) and not prepare.ready((1, True))
+
+
+def test_an_edit_of_the_kernels_prepares_again(fresh_cache, monkeypatch):
+    """The mark's name holds the sources' digest: another digest is not ready."""
+    prepare.main(["1u"])
+    monkeypatch.setattr(prepare, "_stamp", lambda: "0123456789abcdef")
+    assert not prepare.ready((1, False))
+
+
+def test_an_unknown_mode_is_refused(monkeypatch):
+    monkeypatch.setenv(prepare.ENV, "soon")
+    with pytest.raises(ValueError, match="SOFTRAS_COMPILE='soon': expected one of wait, background"):
+        prepare.mode()
