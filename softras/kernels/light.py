@@ -25,7 +25,8 @@ import numba
 import numpy as np
 
 from softras.kernels.interpolate import _corner_colors, _mix
-from softras.kernels.lanes import _LF_LIT, _LF_TEX, _LF_W, _LI_WORD
+from softras.kernels.lanes import (_LF_LIT, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW, _LF_W,
+                                   _LI_WORD)
 from softras.pipeline import fragment, vertex
 from softras.pipeline.ops import unorm8
 
@@ -106,9 +107,11 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting):
     interpolated and the normal normalised
     (`softras.pipeline.render.phong_attributes`), then
     `softras.pipeline.fragment.blinn_phong` with the light table (L, _NL)
-    and the `Lighting`."""
+    and the `Lighting`.  In passes over the lanes, so that all but the
+    power compile to SIMD: the interpolation; per light its vectors, then
+    the power (a call per lane), then its term."""
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
-    corner_colors = _corner_colors(colors, t)
+    cc = _corner_colors(colors, t)
     px3 = (lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0])
     py3 = (lit[t, 0, 1], lit[t, 1, 1], lit[t, 2, 1])
     pz3 = (lit[t, 0, 2], lit[t, 1, 2], lit[t, 2, 2])
@@ -117,31 +120,39 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting):
     nz3 = (lit[t, 0, 5], lit[t, 1, 5], lit[t, 2, 5])
     for l in range(n):
         w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
-        r, g, b = _mix(w, corner_colors.r), _mix(w, corner_colors.g), _mix(w, corner_colors.b)
         px, py, pz = _mix(w, px3), _mix(w, py3), _mix(w, pz3)
         nx, ny, nz = _unit(_mix(w, nx3), _mix(w, ny3), _mix(w, nz3))
         vx, vy, vz = _unit(eye_x - px, eye_y - py, eye_z - pz)
-        out_r, out_g, out_b = ambient * r, ambient * g, ambient * b
-        for j in range(lights.shape[0]):
-            lw = lights[j, _L_VECTOR + 3]
-            lx, ly, lz = _unit(lights[j, _L_VECTOR] - px * lw, lights[j, _L_VECTOR + 1] - py * lw,
-                               lights[j, _L_VECTOR + 2] - pz * lw)
-            n_dot_l = _dot(nx, ny, nz, lx, ly, lz)
-            hx, hy, hz = _unit(lx + vx, ly + vy, lz + vz)
+        lf[_LF_POS, l], lf[_LF_POS + 1, l], lf[_LF_POS + 2, l] = px, py, pz
+        lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l] = nx, ny, nz
+        lf[_LF_VIEW, l], lf[_LF_VIEW + 1, l], lf[_LF_VIEW + 2, l] = vx, vy, vz
+        lf[_LF_LIT, l] = ambient * _mix(w, cc.r)
+        lf[_LF_LIT + 1, l] = ambient * _mix(w, cc.g)
+        lf[_LF_LIT + 2, l] = ambient * _mix(w, cc.b)
+        lf[_LF_LIT + 3, l] = _mix(w, cc.a)
+    for j in range(lights.shape[0]):
+        ox, oy, oz, ow = (lights[j, _L_VECTOR], lights[j, _L_VECTOR + 1], lights[j, _L_VECTOR + 2],
+                          lights[j, _L_VECTOR + 3])
+        cr, cg, cb = lights[j, _L_COLOR], lights[j, _L_COLOR + 1], lights[j, _L_COLOR + 2]
+        for l in range(n):
+            lx, ly, lz = _unit(ox - lf[_LF_POS, l] * ow, oy - lf[_LF_POS + 1, l] * ow, oz - lf[_LF_POS + 2, l] * ow)
+            nx, ny, nz = lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l]
+            hx, hy, hz = _unit(lx + lf[_LF_VIEW, l], ly + lf[_LF_VIEW + 1, l], lz + lf[_LF_VIEW + 2, l])
             n_dot_h = _dot(nx, ny, nz, hx, hy, hz)
-            n_dot_h = n_dot_h if (n_dot_h >= 0.0 or n_dot_h != n_dot_h) else 0.0     # numpy.maximum(., 0)
-            spec = specular * _power(n_dot_h, shininess)
-            term_r = lights[j, _L_COLOR] * (diffuse * n_dot_l * r + spec)
-            term_g = lights[j, _L_COLOR + 1] * (diffuse * n_dot_l * g + spec)
-            term_b = lights[j, _L_COLOR + 2] * (diffuse * n_dot_l * b + spec)
+            lf[_LF_NDL, l] = _dot(nx, ny, nz, lx, ly, lz)
+            lf[_LF_SPEC, l] = n_dot_h if (n_dot_h >= 0.0 or n_dot_h != n_dot_h) else 0.0   # numpy.maximum(., 0)
+        for l in range(n):
+            lf[_LF_SPEC, l] = specular * _power(lf[_LF_SPEC, l], shininess)
+        for l in range(n):
+            w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
+            n_dot_l, spec = lf[_LF_NDL, l], lf[_LF_SPEC, l]
             lit_here = n_dot_l > 0
-            out_r = out_r + (term_r if lit_here else 0.0)
-            out_g = out_g + (term_g if lit_here else 0.0)
-            out_b = out_b + (term_b if lit_here else 0.0)
-        lf[_LF_LIT, l] = out_r
-        lf[_LF_LIT + 1, l] = out_g
-        lf[_LF_LIT + 2, l] = out_b
-        lf[_LF_LIT + 3, l] = _mix(w, corner_colors.a)
+            term_r = cr * (diffuse * n_dot_l * _mix(w, cc.r) + spec)
+            term_g = cg * (diffuse * n_dot_l * _mix(w, cc.g) + spec)
+            term_b = cb * (diffuse * n_dot_l * _mix(w, cc.b) + spec)
+            lf[_LF_LIT, l] = lf[_LF_LIT, l] + (term_r if lit_here else 0.0)
+            lf[_LF_LIT + 1, l] = lf[_LF_LIT + 1, l] + (term_g if lit_here else 0.0)
+            lf[_LF_LIT + 2, l] = lf[_LF_LIT + 2, l] + (term_b if lit_here else 0.0)
 
 
 @numba.njit(error_model="numpy")
