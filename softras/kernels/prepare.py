@@ -27,7 +27,7 @@ without numba's cache files behind it (a cleared cache) costs a compile in
 the render, as before, not a wrong picture.
 
 ``SOFTRAS_COMPILE=wait|background`` chooses the mode (default: background;
-tests/conftest.py and `softras bench` wait).
+the test suite's conftest and `softras bench` wait).
 """
 
 from __future__ import annotations
