@@ -48,15 +48,15 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
             and texture_bounds is None and tie_rule == "left_bottom"
             and kernels.unsupported(scene, precision=precision, samples=len(job.positions),
                                     clipping=clipping) is None)
-    if fast and not prepare.ensure(prepare.variants(scene, len(job.positions))):
-        # The kernels are being compiled in the background (`softras.kernels.prepare`):
-        # the stages draw this scene, unless their larger sample buffers refuse it.
+    if fast:
+        # Unless the kernels are ready (or compiled now), a background process
+        # compiles them and the stages draw this scene (`softras.kernels.prepare`).
         try:
             stages.check_sample_memory(scene, len(job.positions), stages.SAMPLE_BYTES)
-            fast = False
+            stages_can_draw = True
         except ValueError:
-            for variant in prepare.variants(scene, len(job.positions)):
-                prepare.prepare(variant)
+            stages_can_draw = False
+        fast = prepare.ensure(prepare.variants(scene, len(job.positions)), stages_can_draw)
     if not fast:
         return stages.resolve(job, stages.render_samples(scene, job))
     stored = kernels.render_samples(scene, job.positions, texture_fixed_point=texture_fixed_point,

@@ -81,8 +81,9 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
                 found.append((str(path.relative_to(REPO)), line.split(" = ")[0]))
     assert found == [("softras/cli.py", "DEFAULT_DEMO_SCENE"), ("softras/kernels/draw.py",
                      'for path in sorted(Path(__file__).resolve().parent.glob("*.py")):'),
-                     ("softras/kernels/prepare.py", "root"),
-                     ("softras/kernels/prepare.py", 'return Path(__file__).resolve().parent / "__pycache__"')], found
+                     ("softras/kernels/prepare.py", 'return Path(__file__).resolve().parent / "__pycache__"'),
+                     ("softras/kernels/prepare.py",
+                      'for path in sorted((Path(__file__).resolve().parents[1] / "pipeline").glob("*.py")):')], found
 
 
 @pytest.mark.gl

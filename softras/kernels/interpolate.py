@@ -90,11 +90,16 @@ def _shade_word(w, colors, texel):
     untextured, which leaves every value as it is) as the bytes llvmpipe
     converts the fragment colour to (`softras.pipeline.ops.unorm8`), packed in
     one RGBA8 word (R in the low byte)."""
-    alpha = _mix(w, colors.a)
-    r = _mix(w, colors.r) * alpha * texel.r
-    g = _mix(w, colors.g) * alpha * texel.g
-    b = _mix(w, colors.b) * alpha * texel.b
-    return unorm8(r) | (unorm8(g) << 8) | (unorm8(b) << 16) | (unorm8(alpha * texel.a) << 24)
+    return _color_word(_mix(w, colors.r), _mix(w, colors.g), _mix(w, colors.b), _mix(w, colors.a), texel)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _color_word(r, g, b, alpha, texel):
+    """`softras.pipeline.fragment.shade_unlit` of one straight colour (r, g,
+    b, alpha): premultiplied, times the `RGBA` texel, as the RGBA8 word of
+    `softras.pipeline.ops.unorm8`'s bytes (R in the low byte)."""
+    return (unorm8(r * alpha * texel.r) | (unorm8(g * alpha * texel.g) << 8) | (unorm8(b * alpha * texel.b) << 16)
+            | (unorm8(alpha * texel.a) << 24))
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

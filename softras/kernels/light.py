@@ -24,11 +24,10 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from softras.kernels.interpolate import _corner_colors, _mix
+from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix
 from softras.kernels.lanes import (_LF_LIT, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW, _LF_W,
                                    _LI_WORD)
 from softras.pipeline import fragment, vertex
-from softras.pipeline.ops import unorm8
 
 # The eye (world space) and the material's Blinn-Phong terms, as scalars.
 Lighting = namedtuple("Lighting", ["eye_x", "eye_y", "eye_z", "ambient", "diffuse", "specular", "shininess"])
@@ -158,15 +157,13 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting):
 @numba.njit(error_model="numpy")
 def _phong_words(n, t, colors, lit, lf, li, lights, lighting, textured):
     """The fragment colour of the n lanes of triangle t, Phong-shaded, as
-    llvmpipe's bytes: the lit colour (`_phong_colors`), then
-    `softras.pipeline.fragment.shade_unlit` (premultiplied, times the
-    _LF_TEX texel when textured) and `softras.pipeline.ops.unorm8`, one
+    llvmpipe's bytes: the lit colour (`_phong_colors`) times the _LF_TEX
+    texel when textured (`softras.kernels.interpolate._color_word`), one
     RGBA8 word each into the _LI_WORD row."""
     _phong_colors(n, t, colors, lit, lf, lights, lighting)
     for l in range(n):
-        tr = tg = tb = ta = 1.0
+        texel = RGBA(1.0, 1.0, 1.0, 1.0)
         if textured:
-            tr, tg, tb, ta = lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l]
-        alpha = lf[_LF_LIT + 3, l]
-        li[_LI_WORD, l] = (unorm8(lf[_LF_LIT, l] * alpha * tr) | (unorm8(lf[_LF_LIT + 1, l] * alpha * tg) << 8)
-                           | (unorm8(lf[_LF_LIT + 2, l] * alpha * tb) << 16) | (unorm8(alpha * ta) << 24))
+            texel = RGBA(lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l])
+        li[_LI_WORD, l] = _color_word(lf[_LF_LIT, l], lf[_LF_LIT + 1, l], lf[_LF_LIT + 2, l], lf[_LF_LIT + 3, l],
+                                      texel)

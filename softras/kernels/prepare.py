@@ -67,14 +67,16 @@ def variants(scene, samples: int) -> set[tuple[int, bool]]:
 
 @functools.cache
 def _stamp() -> str:
-    """What the compiled code depends on: the sources of softras's kernels
-    and stages (numba-compiled, inlined into the drivers), numba's version,
-    the host CPU (numba compiles for it)."""
+    """What the compiled code depends on: the kernels' sources (the drivers'
+    own stamp, `softras.kernels.draw._SOURCES`), the stages' (numba loops of
+    their own, and functions the drivers inline), numba's version, the host
+    CPU (numba compiles for it)."""
     import llvmlite.binding as llvm
 
-    root = Path(__file__).resolve().parents[1]
-    digest = hashlib.sha256(f"{numba.__version__}\0{llvm.get_host_cpu_name()}\0".encode())
-    for path in sorted([*root.glob("kernels/*.py"), *root.glob("pipeline/*.py")]):
+    from softras.kernels import draw
+
+    digest = hashlib.sha256(f"{numba.__version__}\0{llvm.get_host_cpu_name()}\0{draw._SOURCES}\0".encode())
+    for path in sorted((Path(__file__).resolve().parents[1] / "pipeline").glob("*.py")):
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()[:16]
 
@@ -93,9 +95,16 @@ def _mark(variant: tuple[int, bool]) -> Path:
     return cache_dir() / f"softras-ready-{_stamp()}-{samples}{'t' if textured else 'u'}"
 
 
+_marks_seen: set[Path] = set()
+
+
 def ready(variant: tuple[int, bool]) -> bool:
-    """Whether ``variant`` (samples, textured) has been prepared on this machine."""
-    return _mark(variant).exists()
+    """Whether ``variant`` (samples, textured) has been prepared on this
+    machine (a mark found once is not looked up again in this process)."""
+    mark = _mark(variant)
+    if mark not in _marks_seen and mark.exists():
+        _marks_seen.add(mark)
+    return mark in _marks_seen
 
 
 @contextlib.contextmanager
@@ -191,20 +200,22 @@ def start_background(variants) -> bool:
     return True
 
 
-def ensure(variants) -> bool:
+def ensure(variants, stages_can_draw: bool = True) -> bool:
     """Make the compiled kernels of ``variants`` usable for a render, per
     `mode`.  Returns True when the render may take them (ready, or prepared
-    now in "wait" mode), False when it should use the stages this time (a
-    background process is preparing them)."""
+    now), False when it should use the stages this time (a background
+    process is preparing them).  stages_can_draw : whether the stages can
+    draw the scene at all (their sample buffers are larger); if not, the
+    kernels are prepared now in either mode."""
     variants = sorted(set(variants))
     if all(ready(v) for v in variants):
         return True
-    if mode() == MODE_WAIT:
-        for variant in variants:
-            prepare(variant)
-        return True
-    start_background(variants)
-    return False
+    if mode() == MODE_BACKGROUND and stages_can_draw:
+        start_background(variants)
+        return False
+    for variant in variants:
+        prepare(variant)
+    return True
 
 
 def main(argv: list[str] | None = None) -> int:
