@@ -26,7 +26,7 @@ from softras.kernels import rasterize as k_rasterize
 from softras.kernels import rgba8 as k_rgba8
 from softras.kernels import setup as k_setup
 from softras.kernels import texture as k_texture
-from softras.pipeline import fragment
+from softras.pipeline import fragment, vertex
 from softras.renderer import render_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
@@ -228,6 +228,51 @@ def test_phong_colors_are_the_stages_to_the_bit():
         got = lf[k_lanes._LF_LIT:k_lanes._LF_LIT + 4, :n].T
         assert np.array_equal(got[:, :3].view(np.int64), expected.view(np.int64)), f"shininess {shininess}"
         assert np.array_equal(got[:, 3], colors[:, 3])
+
+
+def test_vertex_and_face_lighting_are_the_stages_to_the_bit():
+    """`k_light.base_colors` (Gouraud, per vertex) and `k_light.face_colors`
+    (flat, per triangle) give the float64 bits of
+    `softras.pipeline.render.vertex_base_colors` and `flat_colors`: random
+    meshes under a random world matrix (zero normals and degenerate faces,
+    so NaN, included), vertex colours outside [0, 1], point and directional
+    lights, each special-cased exponent."""
+    from types import SimpleNamespace
+
+    from softras.pipeline import render as stages
+    from softras.scene.model import Light
+    from softras.scene.transforms import look_at_matrix
+    rng = np.random.default_rng(12)
+    for trial, shininess in enumerate([2.0, 0.5, 0.0, 1.0, 17.3, 64.0]):
+        lights = [Light("point", rng.uniform(-3, 3, 3), None, np.array([1.0, 0.9, 0.8])),
+                  Light("directional", None, rng.uniform(-1, 1, 3), np.array([0.4, 0.5, 0.6]))][:1 + trial % 2]
+        n = 200
+        normals = rng.normal(size=(n, 3))
+        normals[:5] = 0.0                                              # zero normals: NaN
+        mesh = SimpleNamespace(positions=rng.normal(size=(n, 3)), normals=normals,
+                               colors=rng.uniform(-0.2, 1.3, (n, 4)))
+        triangles = rng.integers(0, n, (300, 3))
+        triangles[:3, 1] = triangles[:3, 0]                            # degenerate faces: NaN
+        world = np.eye(4)
+        world[:3] = rng.normal(size=(3, 4))
+        material = SimpleNamespace(shading="gouraud", color=rng.uniform(0.2, 1, 4), ambient=0.15, diffuse=0.9,
+                                   specular=0.7, shininess=shininess)
+        scene = SimpleNamespace(lights=lights,
+                                camera=SimpleNamespace(view=look_at_matrix(rng.normal(size=3) * 3, np.zeros(3),
+                                                                           np.array([0.0, 1.0, 0.0]))))
+        draw = SimpleNamespace(mesh=mesh, world=world, material=material)
+        with np.errstate(all="ignore"):
+            expected = stages.vertex_base_colors(scene, draw)
+            got = k_light.base_colors(scene, draw)
+            assert np.array_equal(got.view(np.int64), expected.view(np.int64)), f"gouraud, shininess {shininess}"
+            material.shading = "flat"
+            base = stages.vertex_base_colors(scene, draw)
+            world_positions = vertex.world_positions(mesh.positions, world)
+            expected = stages.flat_colors(world_positions, triangles, base,
+                                          vertex.eye_position(scene.camera.view), lights,
+                                          material)[0]
+            got = k_light.face_colors(scene, draw, base, triangles)
+        assert np.array_equal(got.view(np.int64), expected.view(np.int64)), f"flat, shininess {shininess}"
 
 
 def test_power_is_numpys():

@@ -37,9 +37,11 @@ bytes and depth as 24-bit integers (`softras.kernels.ops`).
 `unsupported(scene, ...)` says why a scene must take the general path (lines,
 normal and bump maps, anisotropic textures, alpha-tested materials, other
 sample counts or clipping policies...).  Every shading model is drawn here.
-Gouraud and flat shading are lit by the stages' own functions in numpy:
-Gouraud per vertex (`softras.pipeline.render.vertex_base_colors`), its lit
-colours interpolated as vertex colours are; flat per visible triangle
+Gouraud and flat shading are lit before the tile kernels, by compiled
+loops with the stages' operations (`softras.kernels.light.base_colors`,
+`face_colors`): Gouraud per vertex
+(`softras.pipeline.render.vertex_base_colors`), its lit colours
+interpolated as vertex colours are; flat per visible triangle
 (`flat_corner_colors`), its colour taken as it is.  Phong shading lights
 each covered pixel in the kernel (`softras.kernels.light`), from the corner
 world positions and normals that the set-up interpolates like any
@@ -74,7 +76,7 @@ from softras.kernels.interpolate import _lane_depths, _lane_weights, _lane_words
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE, _LI_COV, _LI_IMGF,
                                    _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
                                    _NLF, LANES, LaneBuffers)
-from softras.kernels.light import NO_LIGHTING, _phong_words, phong_inputs
+from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, face_colors, phong_inputs
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_whole_block)
@@ -83,7 +85,7 @@ from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texe
                                      _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import ops, setup, texture, vertex
-from softras.pipeline.render import check_sample_memory, flat_colors, vertex_base_colors
+from softras.pipeline.render import check_sample_memory
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
@@ -179,7 +181,7 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     material = draw.material
     textured = material.texture is not None
     lit = material.shading == "phong"
-    base = np.ascontiguousarray(vertex_base_colors(scene, draw))            # straight, per vertex
+    base = base_colors(scene, draw)                                          # straight, per vertex
     uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured
            else np.zeros((0, 2)))
     world_normals, lights, lighting = phong_inputs(scene, draw) if lit else NO_LIGHTING
@@ -219,13 +221,10 @@ def flat_corner_colors(scene: Scene, draw, base: np.ndarray, triangles: np.ndarr
     provoking vertex, straight) at corner 0 and zeros at corners 1 and 2
     (`softras.kernels.interpolate._lane_words` with ``flat``).  base : (V, 4)
     the straight vertex colours times the material's.  The stages light the
-    same source triangles of the visible set-up triangles, row by row with
-    the same numpy operations."""
-    mesh = draw.mesh
-    world = vertex.world_positions(mesh.positions, draw.world)
+    same source triangles of the visible set-up triangles
+    (`softras.kernels.light.face_colors`: their operations, compiled)."""
     out = np.zeros((len(triangles), 3, 4))
-    out[:, 0] = flat_colors(world, mesh.indices[triangles], base, vertex.eye_position(scene.camera.view),
-                            scene.lights, draw.material)[0]
+    out[:, 0] = face_colors(scene, draw, base, draw.mesh.indices[triangles])
     return out
 
 
