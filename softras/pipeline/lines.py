@@ -199,36 +199,62 @@ def clip_lines(clip: np.ndarray, indices: np.ndarray, *, precision: str = "gl",
     out_weights = np.broadcast_to(np.eye(2), (len(kept), 2, 2)).copy()
     out_generated = np.zeros((len(kept), 2), bool)
     survives = np.ones(len(kept), bool)
-    one = ftype(1.0)
-    zero = ftype(0.0)
-    for k in np.nonzero((m0[kept] | m1[kept]).any(axis=1))[0]:
+    crossing = np.nonzero((m0[kept] | m1[kept]).any(axis=1))[0]
+    _clip_crossing(crossing, kept, indices, dist, m0, m1, c, ftype(0), out_clip, out_weights, out_generated,
+                   survives)
+    return ClippedLines(out_clip[survives], kept[survives].astype(np.int64),
+                        out_weights[survives], out_generated[survives])
+
+
+@numba.njit(cache=True)
+def _clip_crossing(crossing, kept, indices, dist, m0, m1, c, zero, out_clip, out_weights, out_generated,
+                   survives):
+    """`clip_lines`' parametric clipping of the kept lines ``crossing`` (rows
+    of kept) with an end point outside some plane, in place: per plane
+    either end point is outside of (ffs order), t0 / t1 grow, the line is
+    dropped (survives False) once t0 + t1 >= 1, else its outside end points
+    are replaced by ``v0 + t0 (v1 - v0)`` / ``v1 + t1 (v0 - v1)`` with their
+    weights and generated flags.  dist (N, 6), c (N, 4): the plane distances
+    and clip positions in the draw module's type (float32 in gl, float64 in
+    exact), every operation in that type, zero its 0 (Python's ``max(t, x)``:
+    x only when x > t)."""
+    for k in crossing:
         line = kept[k]
-        i0, i1 = indices[line]
+        i0, i1 = indices[line, 0], indices[line, 1]
         t0 = zero
         t1 = zero
-        for plane in np.nonzero(m0[line] | m1[line])[0]:       # ffs order
+        for plane in range(m0.shape[1]):
+            if not (m0[line, plane] or m1[line, plane]):
+                continue
             d0 = dist[i0, plane]
             d1 = dist[i1, plane]
             if d1 < 0:
-                t1 = max(t1, ftype(d1 / ftype(d1 - d0)))
+                x1 = d1 / (d1 - d0)
+                t1 = x1 if x1 > t1 else t1
             if d0 < 0:
-                t0 = max(t0, ftype(d0 / ftype(d0 - d1)))
-            if ftype(t0 + t1) >= one:
+                x0 = d0 / (d0 - d1)
+                t0 = x0 if x0 > t0 else t0
+            if t0 + t1 >= 1:
                 survives[k] = False
                 break
         if not survives[k]:
             continue
-        v0, v1 = c[i0], c[i1]
-        if m0[line].any():
-            out_clip[k, 0] = v0 + ftype(t0) * (v1 - v0)
-            out_weights[k, 0] = [1.0 - float(t0), float(t0)]
+        outside0, outside1 = False, False
+        for plane in range(m0.shape[1]):
+            outside0 |= m0[line, plane]
+            outside1 |= m1[line, plane]
+        if outside0:
+            for j in range(4):
+                out_clip[k, 0, j] = c[i0, j] + t0 * (c[i1, j] - c[i0, j])
+            out_weights[k, 0, 0] = 1.0 - np.float64(t0)
+            out_weights[k, 0, 1] = np.float64(t0)
             out_generated[k, 0] = True
-        if m1[line].any():
-            out_clip[k, 1] = v1 + ftype(t1) * (v0 - v1)
-            out_weights[k, 1] = [float(t1), 1.0 - float(t1)]
+        if outside1:
+            for j in range(4):
+                out_clip[k, 1, j] = c[i1, j] + t1 * (c[i0, j] - c[i1, j])
+            out_weights[k, 1, 0] = np.float64(t1)
+            out_weights[k, 1, 1] = 1.0 - np.float64(t1)
             out_generated[k, 1] = True
-    return ClippedLines(out_clip[survives], kept[survives].astype(np.int64),
-                        out_weights[survives], out_generated[survives])
 
 
 # --------------------------------------------------------------------------- setup (numba)
@@ -787,6 +813,28 @@ class LineFragments:
         return len(self.fragments)
 
 
+def rasterized_lines(clip: np.ndarray, indices: np.ndarray, width: int, height: int, *,
+                     values: np.ndarray, precision: str = "gl", sample_positions: np.ndarray,
+                     policy: str | None = None):
+    """`line_fragments` up to the fragments: clip, viewport, rasterize.
+
+    Returns (fragments, t, window (L, 2, 3), inv_w (L, 2), ends (L, 2, K)):
+    `rasterize_lines`' fragments and t, then per clipped line its end
+    points' window coordinates and 1/w and the values at its end points
+    (clip weights x the source vertices' values).  Arguments as
+    `line_fragments`.
+    """
+    policy = policy or ("llvmpipe" if precision == "gl" else "guard_band")
+    clipped = clip_lines(clip, indices, precision=precision, policy=policy, width=width, height=height)
+    fused = True if precision != "gl" else ~clipped.generated
+    window, inv_w = viewport_transform(clipped.clip, width, height, precision, fused)
+    frags, t = rasterize_lines(window, width, height, precision, sample_positions=sample_positions)
+    source = np.asarray(indices, np.int64).reshape(-1, 2)[clipped.source]          # (L, 2)
+    at = np.asarray(values, np.float64)[source]                                    # (L, 2, K)
+    ends = clipped.weights[..., 0:1] * at[:, None, 0] + clipped.weights[..., 1:2] * at[:, None, 1]
+    return frags, t, window, inv_w, ends
+
+
 def line_fragments(clip: np.ndarray, indices: np.ndarray, width: int, height: int, *,
                    values: np.ndarray, precision: str = "gl",
                    sample_positions: np.ndarray | None = None,
@@ -800,14 +848,10 @@ def line_fragments(clip: np.ndarray, indices: np.ndarray, width: int, height: in
     "llvmpipe" in gl, "guard_band" in exact).
     """
     positions = np.array([[0.5, 0.5]]) if sample_positions is None else np.asarray(sample_positions, float)
-    policy = policy or ("llvmpipe" if precision == "gl" else "guard_band")
-    clipped = clip_lines(clip, indices, precision=precision, policy=policy, width=width, height=height)
-    fused = True if precision != "gl" else ~clipped.generated
-    window, inv_w = viewport_transform(clipped.clip, width, height, precision, fused)
-    frags, t = rasterize_lines(window, width, height, precision, sample_positions=positions)
+    frags, t, window, inv_w, ends = rasterized_lines(clip, indices, width, height, values=values,
+                                                     precision=precision, sample_positions=positions,
+                                                     policy=policy)
     line = frags.tri
     z = depth_at_samples(window[line], frags.x, frags.y, positions, precision, len(positions) > 1)
-    source = np.asarray(indices, np.int64).reshape(-1, 2)[clipped.source]          # (L, 2)
-    ends = np.einsum("lkj,ljc->lkc", clipped.weights, np.asarray(values, np.float64)[source])
     interpolated = interpolate_lines(t, inv_w[line], ends[line])
     return LineFragments(frags, z, interpolated)
