@@ -9,11 +9,13 @@ the stage it speeds up and names the readable function it must equal:
 - `setup`: `softras.pipeline.setup` (and the corner attributes);
 - `rasterize`: binning and `softras.pipeline.rasterize`'s coverage tests;
 - `interpolate`: `softras.pipeline.interpolate` and the unlit colour;
-- `light`: Phong shading per pixel (`softras.pipeline.fragment.blinn_phong`);
+- `light`: Blinn-Phong per pixel, per vertex and per face
+  (`softras.pipeline.fragment.blinn_phong`);
+- `lines`: the per-fragment work of line draws (`softras.pipeline.lines`);
 - `texture`: `softras.pipeline.texture.sample`;
 - `ops`: `softras.pipeline.ops` (depth test, blending, the writes);
-- `lanes`, `rgba8`: the kernels' own representations (lane rows, RGBA8
-  words in 16-bit lanes);
+- `lanes`, `rgba8`, `scratch`: the kernels' own representations (lane rows,
+  RGBA8 words in 16-bit lanes, reused buffers);
 - `draw`: the per-draw fusion of them all, and the dispatch (`unsupported`,
   `render_samples`).
 

@@ -34,9 +34,11 @@ naming the readable function it must equal:
 The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes and depth as 24-bit integers (`softras.kernels.ops`).
 
-`unsupported(scene, ...)` says why a scene must take the general path (lines,
-normal and bump maps, anisotropic textures, alpha-tested materials, other
-sample counts or clipping policies...).  Every shading model is drawn here.
+Line draws take `softras.kernels.lines` (the stages' clipping, set-up and
+coverage, then compiled per-fragment work into the same byte framebuffer).
+`unsupported(scene, ...)` says why a scene must take the general path (lit
+or textured lines, normal and bump maps, anisotropic textures, alpha-tested
+materials, other sample counts or clipping policies...).  Every shading model is drawn here.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
 `face_colors`): Gouraud per vertex
@@ -55,9 +57,7 @@ per-draw constants outside of the per-pixel work).
 from __future__ import annotations
 
 import hashlib
-import math
 import os
-import threading
 from collections import namedtuple
 from pathlib import Path
 
@@ -76,10 +76,12 @@ from softras.kernels.interpolate import _lane_depths, _lane_weights, _lane_words
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE, _LI_COV, _LI_IMGF,
                                    _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
                                    _NLF, LANES, LaneBuffers)
+from softras.kernels.lines import draw_lines, unsupported_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, face_colors, phong_inputs
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_whole_block)
+from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_bilinear_fixed,
                                      _lanes_lod, _sample_lane, texture_tables)
@@ -128,8 +130,11 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
         return f"clipping {clipping!r}"
     for draw in scene.draws:
         material = draw.material
-        if draw.mesh.primitive != "triangles":
-            return f"{draw.path}: {draw.mesh.primitive}"
+        if draw.mesh.primitive == "lines":
+            reason = unsupported_lines(draw)
+            if reason:
+                return reason
+            continue
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
         if material.alpha_cutoff is not None:
@@ -162,7 +167,10 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     positions = np.ascontiguousarray(positions, np.float64)
     clear(color, depth, ops.unorm8_bytes(ops.premultiplied(scene.background)))
     for draw in ordered_draws(scene):
-        draw_triangles(scene, draw, color, depth, offsets, positions, texture_fixed_point)
+        if draw.mesh.primitive == "lines":
+            draw_lines(scene, draw, Framebuffer(color.view(np.uint32).reshape(shape), depth), positions)
+        else:
+            draw_triangles(scene, draw, color, depth, offsets, positions, texture_fixed_point)
     return color
 
 
@@ -244,30 +252,6 @@ def plain_colors(base: np.ndarray) -> bool:
     checks every k).  The kernel uses it at one sample only, where the
     weights are taken at the covered sample itself."""
     return bool(np.all(base == 1.0))
-
-
-class _Scratch(threading.local):
-    """Per-thread arrays reused from one render to the next (the set-up tables,
-    corner attributes and depth buffer).  A fresh multi-megabyte array costs a
-    page fault per 4 KiB page when first written, on this machine about as
-    much as setting up the triangles that fill it; a reused one is already
-    mapped.  Buffers over MAX_BYTES are not kept."""
-
-    MAX_BYTES = 64 << 20
-
-    def __init__(self):
-        self.buffers = {}
-
-    def take(self, name: str, shape: tuple, dtype) -> np.ndarray:
-        """An uninitialised C-contiguous array of this shape and dtype."""
-        dtype = np.dtype(dtype)
-        size = math.prod(shape)
-        buffer = self.buffers.get(name)
-        if buffer is None or buffer.dtype != dtype or buffer.size < size:
-            buffer = np.empty(max(size, 1), dtype)
-            if buffer.nbytes <= self.MAX_BYTES:
-                self.buffers[name] = buffer
-        return buffer[:size].reshape(shape)
 
 
 _scratch = _Scratch()

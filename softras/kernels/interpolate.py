@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from softras.kernels.lanes import _LF_CX, _LF_CY, _LF_S, _LF_T, _LF_TEX, _LF_W, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
-from softras.kernels.ops import DEPTH_SCALE
+from softras.kernels.ops import _depth_k
 from softras.kernels.setup import _F_DZDX, _F_DZDY, _F_W, _F_X, _F_Y, _F_Z
 from softras.pipeline.ops import unorm8
 
@@ -160,6 +160,4 @@ def _lane_depths(n, t, tri_f, positions, li, n_samples):
         for l in range(n):
             zx = (li[_LI_PX, l] + ox) - x0
             zy = (li[_LI_PY, l] + oy) - y0
-            z = z0 + dzdx * zx + dzdy * zy
-            k = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE)
-            li[_LI_Z + s, l] = np.int32(k if k == k else -1.0)
+            li[_LI_Z + s, l] = _depth_k(z0 + dzdx * zx + dzdy * zy)

@@ -44,6 +44,15 @@ def clear(color, depth, clear_bytes):
 
 
 @numba.njit(cache=True, inline="always")
+def _depth_k(z):
+    """`softras.pipeline.ops.quantize_depth` of one window depth z as the
+    integer k of the stored k / DEPTH_SCALE: clamped to [0, 1] and rounded
+    to 24 bits (-1 for NaN)."""
+    k = np.rint(min(max(z, 0.0), 1.0) * DEPTH_SCALE)
+    return np.int32(k if k == k else -1.0)
+
+
+@numba.njit(cache=True, inline="always")
 def _depth_test_lane(mask, li, l, depth, py, px, depth_func, write_z, n_samples):
     """`softras.pipeline.ops.apply_fragments`'s depth test (and depth write) of
     lane l's samples in ``mask`` against the integer depth buffer, writing
