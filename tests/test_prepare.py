@@ -14,7 +14,7 @@ from softras.kernels import setup as k_setup
 from softras.kernels import texture as k_texture
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import render as stages
-from softras.pipeline import texture, vertex
+from softras.pipeline import lines, texture, vertex
 from softras.renderer import render_scene
 
 SCENE = softras.load_scene(prepare.preparation_scene(1, False))
@@ -44,12 +44,17 @@ def started(monkeypatch):
 def test_the_preparation_scene_reaches_every_kernel(textured):
     """Every draw crosses the near plane (the clipper's generated triangles)
     with at least PARALLEL_SETUP triangles (the parallel set-up); every
-    shading model; textured: a filter of each kind, lanes and scalar."""
+    shading model; textured: a filter of each kind, lanes and scalar; a
+    line draw crossing the near plane."""
     scene = softras.load_scene(prepare.preparation_scene(4, textured))
     assert fastpath.unsupported(scene, precision="gl", samples=4, clipping=None) is None
     assert {d.material.shading for d in scene.draws} == {"unlit", "flat", "gouraud", "phong"}
     for draw in scene.draws:
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
+        if draw.mesh.primitive == "lines":
+            clipped = lines.clip_lines(vertex.to_clip(draw.mesh.positions, mvp, "gl"), draw.mesh.indices)
+            assert len(clipped) == 2 and clipped.generated.any(), "the lines cross no clip plane"
+            continue
         source, slot, _, _ = clip_stage.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"),
                                                           draw.mesh.indices)
         assert len(source) >= k_setup.PARALLEL_SETUP, draw.path

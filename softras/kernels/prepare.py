@@ -61,8 +61,10 @@ def mode() -> str:
 
 def variants(scene, samples: int) -> set[tuple[int, bool]]:
     """The tile-driver variants (samples, textured) that a scene which
-    `softras.kernels.draw.unsupported` accepts needs, at ``samples``."""
-    return {(samples, draw.material.texture is not None) for draw in scene.draws}
+    `softras.kernels.draw.unsupported` accepts needs, at ``samples`` (line
+    draws need none: `softras.kernels.lines` compiles in seconds)."""
+    return {(samples, draw.material.texture is not None) for draw in scene.draws
+            if draw.mesh.primitive == "triangles"}
 
 
 @functools.cache
@@ -131,7 +133,9 @@ def preparation_scene(samples: int, textured: bool) -> dict:
     parallel set-up, `softras.kernels.setup.PARALLEL_SETUP`), crossing the
     near plane (the clipper), drawn unlit, flat, Gouraud and
     Phong, textured with a mipmapped filter (the lane filter) and a nearest
-    one (the scalar filter) when ``textured``, blended and depth-tested."""
+    one (the scalar filter) when ``textured``, blended and depth-tested; and
+    lines crossing the near plane (`softras.kernels.lines` and the line
+    clipper's compiled loop)."""
     from softras.kernels.setup import PARALLEL_SETUP
 
     cols = 2 * int(np.ceil(np.sqrt(PARALLEL_SETUP / 2)))     # (about half of it is inside the frustum)
@@ -143,6 +147,8 @@ def preparation_scene(samples: int, textured: bool) -> dict:
         nodes.append({"name": shading, "rotate": [-80, 1, 0, 0], "translate": [0.3 * k - 0.45, -0.5, 0],
                       "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [4, 8]},
                       "material": material, "blend": "over" if k == 3 else "none"})
+    nodes.append({"name": "lines", "mesh": {"primitive": "lines", "indices": [[0, 1], [2, 3]],
+                                            "positions": [[-1, -0.5, 0.9], [1, 0.4, -3], [1, -0.3, 0.95], [-1, 0.2, -2]]}})
     textures = {name: {"procedural": "checker", "size": [16, 16], "min_filter": name + "_mipmap_linear"
                        if name == "linear" else name}
                 for name in (("linear", "nearest") if textured else ())}
