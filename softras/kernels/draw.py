@@ -76,7 +76,7 @@ from softras.kernels.interpolate import _lane_depths, _lane_weights, _lane_words
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE, _LI_COV, _LI_IMGF,
                                    _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
                                    _NLF, LANES, LaneBuffers)
-from softras.kernels.lines import draw_lines, unsupported_lines
+from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, face_colors, phong_inputs
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
@@ -131,9 +131,8 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
     for draw in scene.draws:
         material = draw.material
         if draw.mesh.primitive == "lines":
-            reason = unsupported_lines(draw)
-            if reason:
-                return reason
+            if material.line_problems():            # (the stages refuse these; the loader too)
+                return f"{draw.path}: lines with {', '.join(material.line_problems())}"
             continue
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
@@ -166,17 +165,19 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     offsets = np.ascontiguousarray(offsets, np.int64)
     positions = np.ascontiguousarray(positions, np.float64)
     clear(color, depth, ops.unorm8_bytes(ops.premultiplied(scene.background)))
+    fb = Framebuffer(color.view(np.uint32).reshape(shape), depth)
     for draw in ordered_draws(scene):
         if draw.mesh.primitive == "lines":
-            draw_lines(scene, draw, Framebuffer(color.view(np.uint32).reshape(shape), depth), positions)
+            draw_lines(scene, draw, fb, positions)
         else:
-            draw_triangles(scene, draw, color, depth, offsets, positions, texture_fixed_point)
+            draw_triangles(scene, draw, fb, offsets, positions, texture_fixed_point)
     return color
 
 
-def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture_fixed_point) -> None:
-    """One triangle draw into the byte framebuffer: `softras.pipeline.render._render_pass`'s
-    per-draw work for one draw (see the module docstring)."""
+def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_point) -> None:
+    """One triangle draw into the byte framebuffer fb (`softras.kernels.ops.Framebuffer`):
+    `softras.pipeline.render._render_pass`'s per-draw work for one draw (see
+    the module docstring)."""
     mesh = draw.mesh
     width, height = scene.width, scene.height
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
@@ -215,7 +216,6 @@ def draw_triangles(scene: Scene, draw, color, depth, offsets, positions, texture
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
                       bool(textured and not flat and not lit and plain_colors(base)), flat, lit)
-    fb = Framebuffer(color.view(np.uint32).reshape(color.shape[:3]), depth)
     draw_tiles = _DRAW_TILES[len(offsets), textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),

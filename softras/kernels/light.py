@@ -50,8 +50,12 @@ def phong_inputs(scene, draw) -> tuple[np.ndarray, np.ndarray, Lighting]:
     vertex_values = np.ascontiguousarray(np.concatenate(
         [vertex.world_positions(mesh.positions, draw.world),
          vertex.world_normals(mesh.normals, draw.world, unit=False)], axis=1))
-    return (vertex_values,
-            *light_table(scene.lights, vertex.eye_position(scene.camera.view), draw.material))
+    return (vertex_values, *scene_lighting(scene, draw.material))
+
+
+def scene_lighting(scene, material) -> tuple[np.ndarray, Lighting]:
+    """`light_table` of the scene's lights, its camera's eye and the material."""
+    return light_table(scene.lights, vertex.eye_position(scene.camera.view), material)
 
 
 def light_table(lights, eye: np.ndarray, material) -> tuple[np.ndarray, Lighting]:
@@ -252,7 +256,7 @@ def base_colors(scene, draw) -> np.ndarray:
     if material.shading != "gouraud":
         return base
     out = np.empty_like(base)
-    table, lighting = light_table(scene.lights, vertex.eye_position(scene.camera.view), material)
+    table, lighting = scene_lighting(scene, material)
     _vertex_lighting(base, np.ascontiguousarray(vertex.world_positions(draw.mesh.positions, draw.world)),
                      np.ascontiguousarray(vertex.world_normals(draw.mesh.normals, draw.world, unit=False)),
                      table, tuple(lighting), out)
@@ -264,7 +268,7 @@ def face_colors(scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndar
     triangles (K, 3) vertex indices, by `_face_lighting`: the same bits.
     base : (V, 4) straight vertex colours times the material's."""
     out = np.empty((len(triangles), 4))
-    table, lighting = light_table(scene.lights, vertex.eye_position(scene.camera.view), draw.material)
+    table, lighting = scene_lighting(scene, draw.material)
     _face_lighting(np.ascontiguousarray(vertex.world_positions(draw.mesh.positions, draw.world)),
                    np.ascontiguousarray(triangles, np.int64), np.ascontiguousarray(base), table, tuple(lighting),
                    out)

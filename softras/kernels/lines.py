@@ -32,15 +32,6 @@ from softras.pipeline import ops, vertex
 from softras.pipeline.render import vertex_colors
 
 
-def unsupported_lines(draw) -> str | None:
-    """Why a line draw must take the stages (which refuse it themselves:
-    softras draws lines unlit, untextured, without alpha test), or None."""
-    material = draw.material
-    if material.texture is not None or material.shading != "unlit" or material.alpha_cutoff is not None:
-        return f"{draw.path}: lines with a texture, lighting or alpha test"
-    return None
-
-
 def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
     """One GL_LINES draw into the byte framebuffer `softras.kernels.ops.Framebuffer`
     fb at the sample positions (S, 2) in [0, 1) (GL's: S > 1 draws

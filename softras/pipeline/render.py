@@ -312,10 +312,9 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
         clip_pos = vertex.to_clip(mesh.positions, mvp, precision)
         if mesh.primitive == "lines":
-            if (draw.material.texture is not None or draw.material.shading != "unlit"
-                    or draw.material.alpha_cutoff is not None):
-                raise NotImplementedError(f"{draw.path}: softras draws lines unlit, untextured, "
-                                          f"without alpha test only")
+            if draw.material.line_problems():
+                raise NotImplementedError(f"{draw.path}: softras draws lines unlit and untextured only, "
+                                          f"this material has {', '.join(draw.material.line_problems())}")
             lf = lines.line_fragments(clip_pos, mesh.indices, width, height, values=vertex_colors(mesh),
                                       precision=precision,
                                       sample_positions=positions, policy=policy)

@@ -110,6 +110,14 @@ class Material:
     # material x texel, before blending) is below this is discarded; None = no test.
     alpha_cutoff: float | None = None
 
+    def line_problems(self) -> list[str]:
+        """What of this material a line draw cannot have (softras draws lines
+        unlit and untextured): its maps, its shading if not unlit, its alpha
+        test.  Empty for a material lines can use."""
+        problems = [key for key in ("texture", "normal_map", "bump_map") if getattr(self, key) is not None]
+        problems += [f"{self.shading} shading"] if self.shading != "unlit" else []
+        return problems + (["alpha_cutoff"] if self.alpha_cutoff is not None else [])
+
 
 @dataclass(frozen=True, eq=False)
 class Displacement:

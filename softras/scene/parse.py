@@ -752,9 +752,7 @@ def _flatten_nodes(nodes, place: str, parent_world: np.ndarray, textures, draws:
             mesh = _parse_mesh(data["mesh"], f"{node_place}.mesh", budget, base_dir)
             material = _parse_material(data.get("material", {}), f"{node_place}.material", textures)
             if mesh.primitive == "lines":
-                lit = [key for key in ("texture", "normal_map", "bump_map") if getattr(material, key) is not None]
-                lit += [f"{material.shading} shading"] if material.shading != "unlit" else []
-                lit += ["alpha_cutoff"] if material.alpha_cutoff is not None else []
+                lit = material.line_problems()
                 if lit:
                     raise SceneError(f"{node_place}.material", f"lines are drawn unlit and untextured, "
                                                                f"this material has {', '.join(lit)}")

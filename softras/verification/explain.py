@@ -472,8 +472,9 @@ def _triangle_geometry(tris, k, clipped, mesh, offsets, unit, wx, wy, gl, *, sta
 
 def _line_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, policy, positions, buffer):
     """Explain one draw of lines at (wx, wy), as `lines.line_fragments` computes it."""
-    if draw.material.texture is not None or draw.material.shading != "unlit":
-        raise NotImplementedError(f"{draw.path}: softras draws lines unlit and untextured only")
+    if draw.material.line_problems():
+        raise NotImplementedError(f"{draw.path}: softras draws lines unlit and untextured only, "
+                                  f"this material has {', '.join(draw.material.line_problems())}")
     width, height = scene.width, scene.height
     mesh = draw.mesh
     clipped = lines.clip_lines(clip_pos, mesh.indices, precision=precision, policy=policy,
