@@ -27,7 +27,7 @@ naming the readable function it must equal:
    the lanes that compile to SIMD: depth at each sample (plane equation,
    24-bit rounding) and perspective-correct colour
    (`softras.kernels.interpolate`), texture (`softras.kernels.texture`; here
-   `_textured_block`: the block's covered 2x2 quads, with per-quad
+   `_textured_tile`: each 8x8 block's covered 2x2 quads, with per-quad
    derivatives and level of detail), RGBA8 rounding, then the depth test,
    blend and write (`softras.kernels.ops`).  No fragment list exists.
 
@@ -377,10 +377,17 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
         t = bin_tri[j]
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
+        # The blocks k = 0 .. n_blocks - 1 row by row, and k = n_blocks to
+        # shade what is left: one call site of `_flat_block`, which numba
+        # inlines (each inlined copy costs seconds of compile time).
+        blocks_x = max((x_end - x_start) // BLOCK + 1, 0)
+        n_blocks = blocks_x * max((y_end - y_start) // BLOCK + 1, 0)
         n_flat = 0                              # lanes listed, shaded from LANES on
-        for by in range(y_start, y_end + 1, BLOCK):
-            by1 = min(by + BLOCK - 1, y_end)
-            for bx in range(x_start, x_end + 1, BLOCK):
+        for k in range(n_blocks + 1):
+            if k < n_blocks:
+                by = y_start + (k // blocks_x) * BLOCK
+                bx = x_start + (k % blocks_x) * BLOCK
+                by1 = min(by + BLOCK - 1, y_end)
                 bx1 = min(bx + BLOCK - 1, x_end)
                 outside, all_in = _block_test(edges, bx * 256 + box[0], bx1 * 256 + box[1],
                                               by * 256 + box[2], by1 * 256 + box[3])
@@ -388,13 +395,13 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
                     continue
                 n_flat = _list_pixels(n_flat, bx, bx1, by, by1, all_in, edges, offsets, full_mask, rows, li,
                                       n_samples)
-                if n_flat >= LANES:
-                    _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights,
-                                lighting, lf, li, n_samples)
-                    n_flat = 0
-        if n_flat:
+                if n_flat < LANES:
+                    continue
+            elif n_flat == 0:
+                break
             _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights, lighting,
                         lf, li, n_samples)
+            n_flat = 0
 
 
 @numba.njit(error_model="numpy")
@@ -403,35 +410,125 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
     start at even pixels (whole 2x2 quads, for the texture derivatives), the
     covered quads are listed (`softras.kernels.rasterize._list_quads`, or
     every quad of a block inside all edges) and each block's quads are
-    shaded at once (`_textured_block`).  Arguments as `_flat_tile`, plus the
-    texture's `Sampler` and `Texels` tex."""
+    shaded at once: `softras.pipeline.texture.sample` and
+    `softras.pipeline.ops.apply_fragments` of a textured triangle's
+    fragments, as `softras.pipeline.render._render_pass` does them, on the n
+    lanes (n / 4 quads, with pixel, centre and coverage) of one triangle in
+    one 8x8 block.  Arguments as `_flat_tile`, plus the texture's `Sampler`
+    and `Texels` tex.
+
+    Per quad the top-left, top-right and bottom-left lanes give the texture
+    derivatives (`softras.pipeline.interpolate.quad_derivatives`) and the
+    level of detail is the quad's (`softras.kernels.texture._lanes_lod`);
+    every lane's own (s, t) is its pixel's.  Lanes outside the triangle are
+    the quad's helper pixels: computed, never written.  With ``state.plain``
+    (`plain_colors`) at one sample the filtered texel's bytes are the
+    fragment's colour word.
+
+    The block's shading is written out in the block loop rather than called:
+    as a function of its own (a call per block, with the records' arrays
+    counted at each) it made the 1024^2 floor 16 % slower, and as a function
+    numba inlines it took 26 s of this function's compile time (numba copies
+    an inlined callee's IR block by block, each block with its own copy of
+    the callee's variable table)."""
     numba.literally(n_samples)
-    lf, li = lanes.lf, lanes.li
+    texels, texels32, table = tex.bytes, tex.words, tex.levels
+    lf, li, lu, texel = lanes.lf, lanes.li, lanes.lu, lanes.texel
     offsets, depth = samples.offsets, fb.depth
     bin_start, bin_tri, tri_i, bbox = bins.start, bins.tri, tris.i, tris.bbox
+    depth_func, write_z = state.depth_func, state.write_z
+    vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
     full_mask = (1 << n_samples) - 1
     box = _sample_box(offsets)
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
-        for block_y in range(y_start & -2, y_end + 1, BLOCK):
-            by = max(block_y, y_start)
-            by1 = min(block_y + BLOCK - 1, y_end)
-            for block_x in range(x_start & -2, x_end + 1, BLOCK):
-                bx = max(block_x, x_start)
-                bx1 = min(block_x + BLOCK - 1, x_end)
-                outside, all_in = _block_test(edges, bx * 256 + box[0], bx1 * 256 + box[1],
-                                              by * 256 + box[2], by1 * 256 + box[3])
-                if outside:
-                    continue
-                if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
-                    n = _list_whole_block(bx, by, full_mask, lf, li)
+        # The 8x8 blocks from even pixels, k = 0 .. n_blocks - 1 row by row.
+        x0, y0 = x_start & -2, y_start & -2
+        blocks_x = max((x_end - x0) // BLOCK + 1, 0)
+        n_blocks = blocks_x * max((y_end - y0) // BLOCK + 1, 0)
+        for k in range(n_blocks):
+            block_y = y0 + (k // blocks_x) * BLOCK
+            block_x = x0 + (k % blocks_x) * BLOCK
+            by, by1 = max(block_y, y_start), min(block_y + BLOCK - 1, y_end)
+            bx, bx1 = max(block_x, x_start), min(block_x + BLOCK - 1, x_end)
+            outside, all_in = _block_test(edges, bx * 256 + box[0], bx1 * 256 + box[1],
+                                          by * 256 + box[2], by1 * 256 + box[3])
+            if outside:
+                continue
+            if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
+                n = _list_whole_block(bx, by, full_mask, lf, li)
+            else:
+                n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples)
+            if n == 0:
+                continue
+            # The block's n lanes shaded.
+            _lane_weights(n, t, tris.f, lf, tris.uv, True)               # weights and (s, t), vectorised
+            _lane_depths(n, t, tris.f, samples.positions, li, n_samples)       # (vectorised)
+            # The level of detail of every quad (before the depth test), kept on the
+            # quad's first lane; whether a quad samples two levels.
+            any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
+            # Depth test (scalar); a quad without a passed sample samples level 0 alone.
+            block_passed = 0
+            block_two = False                             # a passed quad samples two levels
+            for q in range(n >> 2):
+                quad_passed = 0
+                for l in range(4 * q, 4 * q + 4):
+                    p = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func,
+                                         write_z, n_samples)
+                    li[_LI_PASS, l] = p
+                    quad_passed |= p
+                block_passed |= quad_passed
+                l = 4 * q
+                level0, level1 = li[_LI_LEVEL, l], li[_LI_LEVEL + 1, l]
+                image_filter, two, frac = li[_LI_IMGF, l], li[_LI_TWO, l] != 0, lf[_LF_FRAC, l]
+                if not quad_passed:
+                    level0 = level1 = 0
+                    image_filter = sampler.mag_filter
+                    two = False
+                    frac = 0.0
+                w8 = np.int64(np.floor(frac * 256)) if two else 0
+                block_two |= two
+                # The quad's levels on its lanes: what each sampler reads.
+                if vectorised:
+                    for lv in range(2 if any_two else 1):     # (the second level's rows only where read)
+                        level = level1 if (lv == 1 and two) else level0
+                        lw, lh, base = table[level, 1], table[level, 2], table[level, 0] >> 2
+                        scale_s, scale_t = np.float32(lw * 256), np.float32(lh * 256)
+                        for l in range(4 * q, 4 * q + 4):
+                            li[_LI_BASE + lv, l] = base
+                            li[_LI_LW + lv, l] = lw
+                            li[_LI_LH + lv, l] = lh
+                            lf[_LF_SCALE + 2 * lv, l] = scale_s
+                            lf[_LF_SCALE + 2 * lv + 1, l] = scale_t
+                for l in range(4 * q, 4 * q + 4):
+                    li[_LI_W8, l] = w8
+                    if not vectorised:
+                        li[_LI_LEVEL, l] = level0
+                        li[_LI_LEVEL + 1, l] = level1
+                        li[_LI_IMGF, l] = image_filter
+                        li[_LI_TWO, l] = two
+                        lf[_LF_FRAC, l] = frac
+            if block_passed == 0:
+                continue
+            words = state.plain and n_samples == 1 and vectorised     # texels straight into _LI_WORD
+            if vectorised:
+                if block_two:                         # (the level count a constant in each copy)
+                    _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
                 else:
-                    n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples)
-                if n:
-                    _textured_block(n, t, tris, samples, fb, state, sampler, tex, lights, lighting, lanes,
-                                    n_samples)
+                    _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, sampler)
+            else:
+                for l in range(n):
+                    if li[_LI_PASS, l]:
+                        _sample_lane(l, lf, li, texel, sampler, texels, texels32, table)
+            # The fragment colour as llvmpipe's bytes, blended and written
+            # (`softras.pipeline.ops.apply_fragments`).
+            if state.lit:
+                _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, True)
+            elif not words:
+                _lane_words(n, t, tris.colors, lf, li, True, state.flat)
+            _write_lanes(n, li, fb.color32, state.blend, n_samples)
 
 
 @numba.njit(error_model="numpy", inline="always")
@@ -486,94 +583,6 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     else:
         _lane_words(kept, t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)
-
-
-@numba.njit(error_model="numpy", inline="always")
-def _textured_block(n, t, tris, samples, fb, state, sampler, tex, lights, lighting, lanes, n_samples):
-    """`softras.pipeline.texture.sample` and `softras.pipeline.ops.apply_fragments`
-    of a textured triangle's fragments, as `softras.pipeline.render._render_pass`
-    does them.  Shade the n lanes (n / 4 quads, listed by `_textured_tile` with pixel,
-    centre and coverage) of one textured triangle in one 8x8 block.
-
-    Per quad the top-left, top-right and bottom-left lanes give the texture
-    derivatives (`softras.pipeline.interpolate.quad_derivatives`) and the
-    level of detail is the quad's (`softras.kernels.texture._lanes_lod`);
-    every lane's own (s, t) is its pixel's.  Lanes outside the triangle are
-    the quad's helper pixels: computed, never written.  With ``state.plain``
-    (`plain_colors`) at one sample the filtered texel's bytes are the
-    fragment's colour word.
-
-    Inlined into `_textured_tile`: a call per block, with the records'
-    arrays counted at each, made the 1024^2 floor 16 % slower."""
-    texels, texels32, table = tex.bytes, tex.words, tex.levels
-    lf, li, lu, depth, texel = lanes.lf, lanes.li, lanes.lu, fb.depth, lanes.texel
-    depth_func, write_z = state.depth_func, state.write_z
-    vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
-    _lane_weights(n, t, tris.f, lf, tris.uv, True)               # weights and (s, t), vectorised
-    _lane_depths(n, t, tris.f, samples.positions, li, n_samples)       # (vectorised)
-    # The level of detail of every quad (before the depth test), kept on the
-    # quad's first lane; whether a quad samples two levels.
-    any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
-    # Depth test (scalar); a quad without a passed sample samples level 0 alone.
-    block_passed = 0
-    block_two = False                             # a passed quad samples two levels
-    for q in range(n >> 2):
-        quad_passed = 0
-        for l in range(4 * q, 4 * q + 4):
-            p = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
-                                 n_samples)
-            li[_LI_PASS, l] = p
-            quad_passed |= p
-        block_passed |= quad_passed
-        l = 4 * q
-        level0, level1 = li[_LI_LEVEL, l], li[_LI_LEVEL + 1, l]
-        image_filter, two, frac = li[_LI_IMGF, l], li[_LI_TWO, l] != 0, lf[_LF_FRAC, l]
-        if not quad_passed:
-            level0 = level1 = 0
-            image_filter = sampler.mag_filter
-            two = False
-            frac = 0.0
-        w8 = np.int64(np.floor(frac * 256)) if two else 0
-        block_two |= two
-        # The quad's levels on its lanes: what each sampler reads.
-        if vectorised:
-            for lv in range(2 if any_two else 1):     # (the second level's rows only where read)
-                level = level1 if (lv == 1 and two) else level0
-                lw, lh, base = table[level, 1], table[level, 2], table[level, 0] >> 2
-                scale_s, scale_t = np.float32(lw * 256), np.float32(lh * 256)
-                for l in range(4 * q, 4 * q + 4):
-                    li[_LI_BASE + lv, l] = base
-                    li[_LI_LW + lv, l] = lw
-                    li[_LI_LH + lv, l] = lh
-                    lf[_LF_SCALE + 2 * lv, l] = scale_s
-                    lf[_LF_SCALE + 2 * lv + 1, l] = scale_t
-        for l in range(4 * q, 4 * q + 4):
-            li[_LI_W8, l] = w8
-            if not vectorised:
-                li[_LI_LEVEL, l] = level0
-                li[_LI_LEVEL + 1, l] = level1
-                li[_LI_IMGF, l] = image_filter
-                li[_LI_TWO, l] = two
-                lf[_LF_FRAC, l] = frac
-    if block_passed == 0:
-        return
-    words = state.plain and n_samples == 1 and vectorised     # texels straight into _LI_WORD
-    if vectorised:
-        if block_two:
-            _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
-        else:
-            _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, sampler)
-    else:
-        for l in range(n):
-            if li[_LI_PASS, l]:
-                _sample_lane(l, lf, li, texel, sampler, texels, texels32, table)
-    # The fragment colour as llvmpipe's bytes, blended and written
-    # (`softras.pipeline.ops.apply_fragments`).
-    if state.lit:
-        _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, True)
-    elif not words:
-        _lane_words(n, t, tris.colors, lf, li, True, state.flat)
-    _write_lanes(n, li, fb.color32, state.blend, n_samples)
 
 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`).

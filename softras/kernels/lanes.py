@@ -9,7 +9,7 @@ small arrays, float64 ``lf`` (_NLF, 2 * LANES) and int64 ``li``
 Pixels are shaded in "lanes": `softras.kernels.draw._flat_tile` (or `_textured_tile`) lists an
 untextured triangle's covered pixels (shaded from LANES of them on,
 `_flat_block`) or a textured triangle's covered 2x2 quads of one 8x8 block (4
-lanes per quad, up to 64, `_textured_block`); then each step runs as one loop
+lanes per quad, up to 64, shaded per block in `_textured_tile`); then each step runs as one loop
 over the lanes.  The steps without branches or table look-ups (the
 perspective weights with their six divisions, depth, texel addresses, the
 8.8 filter, the colour bytes) are loops that LLVM compiles to AVX2 (4 or 8
