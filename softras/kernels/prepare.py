@@ -2,7 +2,7 @@
 
 numba compiles the kernels of `softras.kernels.draw` the first time a
 process needs them and keeps them in its on-disk cache; on a fresh clone
-that takes about a minute per tile-driver variant (a sample count, textured
+that takes about 45 s per tile-driver variant (a sample count, textured
 or not: docs/speed.md, "Compile time").  The readable stages give the same
 bytes (tests/test_fastpath.py) and compile in seconds, so a render need not
 wait: `ensure` either
