@@ -78,9 +78,9 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE
                                    _NLF, LANES, LaneBuffers)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, face_colors, phong_inputs
-from softras.kernels.ops import Framebuffer, _depth_test_lane, _write_lanes, clear
+from softras.kernels.ops import Framebuffer, _depth_test_lane, _uses_depth, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
-                                       _list_whole_block)
+                                       _list_whole_block, _sample_box, _tile_box)
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_bilinear_fixed,
@@ -437,6 +437,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
     offsets, depth = samples.offsets, fb.depth
     bin_start, bin_tri, tri_i, bbox = bins.start, bins.tri, tris.i, tris.bbox
     depth_func, write_z = state.depth_func, state.write_z
+    use_depth = _uses_depth(depth_func, write_z)
     vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
     full_mask = (1 << n_samples) - 1
     box = _sample_box(offsets)
@@ -465,7 +466,8 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                 continue
             # The block's n lanes shaded.
             _lane_weights(n, t, tris.f, lf, tris.uv, True)               # weights and (s, t), vectorised
-            _lane_depths(n, t, tris.f, samples.positions, li, n_samples)       # (vectorised)
+            if use_depth:
+                _lane_depths(n, t, tris.f, samples.positions, li, n_samples)   # (vectorised)
             # The level of detail of every quad (before the depth test), kept on the
             # quad's first lane; whether a quad samples two levels.
             any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
@@ -475,8 +477,10 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
             for q in range(n >> 2):
                 quad_passed = 0
                 for l in range(4 * q, 4 * q + 4):
-                    p = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func,
-                                         write_z, n_samples)
+                    p = li[_LI_COV, l]
+                    if use_depth:
+                        p = _depth_test_lane(p, li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
+                                             n_samples)
                     li[_LI_PASS, l] = p
                     quad_passed |= p
                 block_passed |= quad_passed
@@ -531,24 +535,6 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
             _write_lanes(n, li, fb.color32, state.blend, n_samples)
 
 
-@numba.njit(error_model="numpy", inline="always")
-def _sample_box(offsets):
-    """The extreme sample offsets (1/256 px) of a pixel: (min x, max x, min y,
-    max y), to test a block's corner samples (`_block_test`)."""
-    return offsets[:, 0].min(), offsets[:, 0].max(), offsets[:, 1].min(), offsets[:, 1].max()
-
-
-@numba.njit(error_model="numpy", inline="always")
-def _tile_box(tile, tiles_x, bbox, t, depth):
-    """Triangle t's pixel bounding box (its bbox row) within the tile: first
-    and last column, first and last row."""
-    height, width = depth.shape[0], depth.shape[1]
-    tx0 = (tile % tiles_x) * TILE
-    ty0 = (tile // tiles_x) * TILE
-    return (max(bbox[t, 0], tx0), min(bbox[t, 1], min(tx0 + TILE, width) - 1),
-            max(bbox[t, 2], ty0), min(bbox[t, 3], min(ty0 + TILE, height) - 1))
-
-
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights, lighting, lf, li,
                 n_samples):
@@ -566,11 +552,15 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     records' arrays taken out here cost reference counts (see `_flat_tile`);
     state : the `DrawState` (scalars: free)."""
     depth_func, write_z = state.depth_func, state.write_z
-    _lane_depths(n, t, tri_f, positions, li, n_samples)
+    use_depth = _uses_depth(depth_func, write_z)
+    if use_depth:
+        _lane_depths(n, t, tri_f, positions, li, n_samples)
     kept = 0
     for l in range(n):
         px, py = li[_LI_PX, l], li[_LI_PY, l]
-        p = _depth_test_lane(li[_LI_COV, l], li, l, depth, py, px, depth_func, write_z, n_samples)
+        p = li[_LI_COV, l]
+        if use_depth:
+            p = _depth_test_lane(p, li, l, depth, py, px, depth_func, write_z, n_samples)
         li[_LI_PX, kept] = px
         li[_LI_PY, kept] = py
         li[_LI_PASS, kept] = p

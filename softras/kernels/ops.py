@@ -69,6 +69,15 @@ def _depth_test_lane(mask, li, l, depth, py, px, depth_func, write_z, n_samples)
 
 
 @numba.njit(cache=True, inline="always")
+def _uses_depth(depth_func, write_z):
+    """Whether a draw reads or writes depth: not when its depth test passes
+    every fragment (disabled or "always") and it writes no depth, as a draw
+    without depth test (`softras.pipeline.ops.apply_fragments`); then the
+    kernels compute no depths and leave the depth buffer alone."""
+    return write_z or (depth_func != 0 and depth_func != 8)
+
+
+@numba.njit(cache=True, inline="always")
 def _depth_pass_k(func, k, stored):
     """`softras.pipeline.ops._depth_pass` on depths held as their 24-bit integers k (the
     depth is k / DEPTH_SCALE, a strictly increasing map, so every comparison
