@@ -192,6 +192,15 @@ def _clip_with_polygons(clip, indices, keep, crossing, tri_out, planes, precisio
     )
 
 
+@numba.njit(cache=True, inline="always")
+def _copy_row(dst, i, src, k):
+    """dst[i] = src[k] for 2-D arrays, as a loop: numba's row assignment
+    compiles to a broadcasting copy that checks for overlap, and ten of them
+    made `_clip_gl_kernel` take 6 s to compile."""
+    for j in range(src.shape[1]):
+        dst[i, j] = src[k, j]
+
+
 @numba.njit(cache=True)
 def _clip_gl_kernel(corners, plane_mask, fan_counts, out_clip, out_weights, write):
     """`clip_polygon` in float32 against the llvmpipe frustum planes, compiled.
@@ -230,8 +239,8 @@ def _clip_gl_kernel(corners, plane_mask, fan_counts, out_clip, out_weights, writ
                 prev = i - 1
                 cur = i % m
                 if d[prev] >= 0:
-                    new_pts[nm] = pts[prev]
-                    new_wts[nm] = wts[prev]
+                    _copy_row(new_pts, nm, pts, prev)
+                    _copy_row(new_wts, nm, wts, prev)
                     nm += 1
                 if (d[prev] >= 0) != (d[cur] >= 0):
                     if d[cur] < 0:
@@ -250,18 +259,16 @@ def _clip_gl_kernel(corners, plane_mask, fan_counts, out_clip, out_weights, writ
                         new_wts[nm, j] = wts[out_i, j] + t64 * (wts[in_i, j] - wts[out_i, j])
                     nm += 1
             m = nm
-            pts[:m] = new_pts[:m]
-            wts[:m] = new_wts[:m]
+            for k in range(m):
+                _copy_row(pts, k, new_pts, k)
+                _copy_row(wts, k, new_wts, k)
         fans = max(m - 2, 0)
         counts[c] = fans
         if write:
             for k in range(2, m):
-                out_clip[at, 0] = pts[k - 1]
-                out_clip[at, 1] = pts[k]
-                out_clip[at, 2] = pts[0]
-                out_weights[at, 0] = wts[k - 1]
-                out_weights[at, 1] = wts[k]
-                out_weights[at, 2] = wts[0]
+                for corner, row in enumerate((k - 1, k, 0)):
+                    _copy_row(out_clip[at], corner, pts, row)
+                    _copy_row(out_weights[at], corner, wts, row)
                 at += 1
     return counts
 

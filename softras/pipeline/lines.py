@@ -260,7 +260,9 @@ def _clip_crossing(crossing, kept, indices, dist, m0, m1, c, zero, out_clip, out
 # --------------------------------------------------------------------------- setup (numba)
 
 
-@numba.njit(cache=True, inline="always")
+# `_r` and `_snap` are left to LLVM to inline: numba's own inlining of their
+# 68 call sites took 4 s of `_setup_line`'s compile time.
+@numba.njit(cache=True)
 def _r(v, gl):
     """Round to float32 in gl precision (each float op of lp_setup_line.c is float32)."""
     if gl:
@@ -268,7 +270,7 @@ def _r(v, gl):
     return v
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _snap(a, gl):
     """llvmpipe subpixel_snap: util_iround(256 * a), float32, half away from zero."""
     f = _r(FIXED_ONE * a, gl)
@@ -617,19 +619,6 @@ def _quads(window, rectangular, pixel_offset, gl):
     return qx, qy, ok
 
 
-@numba.njit(cache=True, parallel=True)
-def _count(qx, qy, ok, bottom_edge_rule, gl, offsets, unit, width, height):
-    n = qx.shape[0]
-    counts = np.zeros(n, np.int64)
-    dummy_i = np.zeros(0, np.int32)
-    dummy_m = np.zeros(0, np.uint32)
-    for i in numba.prange(n):
-        if ok[i]:
-            counts[i] = _raster_quad(qx[i], qy[i], bottom_edge_rule, gl, offsets, unit, width, height,
-                                     dummy_i, dummy_i, dummy_m, 0, False)
-    return counts
-
-
 @numba.njit(cache=True)
 def _line_t(x0, y0, x1, y1, x, y, rectangular, gl):
     """Parameter t of the point (x, y) for a line's attribute coefficients.
@@ -649,18 +638,28 @@ def _line_t(x0, y0, x1, y1, x, y, rectangular, gl):
 
 
 @numba.njit(cache=True, parallel=True)
-def _emit(qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, width, height,
-          starts, window, out_x, out_y, out_mask, out_line, out_t):
+def _cover(qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, width, height,
+           starts, window, out_x, out_y, out_mask, out_line, out_t, write):
+    """Every line's coverage (`_raster_quad`), lines in parallel: counted
+    (write False; the out arrays may be empty) or written from ``starts``
+    with each fragment's line and t (`_line_t`, write True).  Returns (L,)
+    int64 fragments per line.  One kernel for both passes, so numba compiles
+    it and `_raster_quad` once."""
     n = qx.shape[0]
+    counts = np.zeros(n, np.int64)
     for i in numba.prange(n):
         if ok[i]:
+            start = starts[i] if write else 0
             k = _raster_quad(qx[i], qy[i], bottom_edge_rule, gl, offsets, unit, width, height,
-                             out_x, out_y, out_mask, starts[i], True)
-            x0, y0 = window[i, 0, 0], window[i, 0, 1]
-            x1, y1 = window[i, 1, 0], window[i, 1, 1]
-            for j in range(starts[i], starts[i] + k):
-                out_line[j] = i
-                out_t[j] = _line_t(x0, y0, x1, y1, out_x[j] + centre, out_y[j] + centre, rectangular, gl)
+                             out_x, out_y, out_mask, start, write)
+            counts[i] = k
+            if write:
+                x0, y0 = window[i, 0, 0], window[i, 0, 1]
+                x1, y1 = window[i, 1, 0], window[i, 1, 1]
+                for j in range(start, start + k):
+                    out_line[j] = i
+                    out_t[j] = _line_t(x0, y0, x1, y1, out_x[j] + centre, out_y[j] + centre, rectangular, gl)
+    return counts
 
 
 def line_quads(window: np.ndarray, *, precision: str = "gl",
@@ -718,15 +717,16 @@ def rasterize_lines(window: np.ndarray, width: int, height: int, precision: str 
         return Fragments.allocate(np.zeros(0, np.int64))[0], np.zeros(0)
     qx, qy, ok = line_quads(window, precision=precision, rectangular=rectangular)
     offsets = np.ascontiguousarray(offsets, np.float64)
-    frags, starts = Fragments.allocate(_count(qx, qy, ok, bottom_edge_rule, gl, offsets, unit,
-                                              int(width), int(height)))
-    out_t = np.empty(len(frags), np.float64)
     ends = np.ascontiguousarray(window[..., :2])
     if gl:
         ends = ends.astype(np.float32).astype(np.float64)
     centre = 0.5 + attribute_shift(precision, rectangular)
-    _emit(qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, int(width), int(height),
-          starts, ends, frags.x, frags.y, frags.mask, frags.tri, out_t)
+    args = (qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, int(width), int(height))
+    none = np.zeros(0, np.int64)
+    frags, starts = Fragments.allocate(_cover(*args, none, ends, none.astype(np.int32), none.astype(np.int32),
+                                              none.astype(np.uint32), none, np.zeros(0), False))
+    out_t = np.empty(len(frags), np.float64)
+    _cover(*args, starts, ends, frags.x, frags.y, frags.mask, frags.tri, out_t, True)
     return frags, out_t
 
 

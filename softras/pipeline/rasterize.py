@@ -134,25 +134,23 @@ def _raster_triangle(a, b, x0, y0, inclusive, bbox, offsets, unit, out_x, out_y,
 
 
 @numba.njit(cache=True, parallel=True)
-def _count(a, b, x0, y0, inclusive, bbox, offsets, unit):
+def _cover(a, b, x0, y0, inclusive, bbox, offsets, unit, starts, out_x, out_y, out_mask, out_tri, write):
+    """Every triangle's coverage (`_raster_triangle`), triangles in parallel:
+    counted (write False; the out arrays may be empty) or written from
+    ``starts`` (write True).  Returns (T,) int64 fragments per triangle.
+    One kernel for both passes, so numba compiles it and `_raster_triangle`
+    once (a pass each compiled `_raster_triangle` twice: 7 s of a cold start)."""
     n = a.shape[0]
     counts = np.zeros(n, np.int64)
-    dummy_i = np.zeros(0, np.int32)
-    dummy_m = np.zeros(0, np.uint32)
     for t in numba.prange(n):
-        counts[t] = _raster_triangle(a[t], b[t], x0[t], y0[t], inclusive[t], bbox[t], offsets, unit,
-                                     dummy_i, dummy_i, dummy_m, 0, False)
-    return counts
-
-
-@numba.njit(cache=True, parallel=True)
-def _emit(a, b, x0, y0, inclusive, bbox, offsets, unit, starts, out_x, out_y, out_mask, out_tri):
-    n = a.shape[0]
-    for t in numba.prange(n):
+        start = starts[t] if write else 0
         k = _raster_triangle(a[t], b[t], x0[t], y0[t], inclusive[t], bbox[t], offsets, unit,
-                             out_x, out_y, out_mask, starts[t], True)
-        for j in range(starts[t], starts[t] + k):
-            out_tri[j] = t
+                             out_x, out_y, out_mask, start, write)
+        counts[t] = k
+        if write:
+            for j in range(start, start + k):
+                out_tri[j] = t
+    return counts
 
 
 def rasterize(setup: TriangleSetup, offsets: np.ndarray, unit: float) -> Fragments:
@@ -172,6 +170,8 @@ def rasterize(setup: TriangleSetup, offsets: np.ndarray, unit: float) -> Fragmen
             np.ascontiguousarray(setup.edge_inclusive),
             np.ascontiguousarray(setup.bbox), np.ascontiguousarray(offsets, dtype),
             int(unit) if dtype.kind == "i" else float(unit))
-    frags, starts = Fragments.allocate(_count(*args))
-    _emit(*args, starts, frags.x, frags.y, frags.mask, frags.tri)
+    none = np.zeros(0, np.int64)
+    frags, starts = Fragments.allocate(_cover(*args, none, none.astype(np.int32), none.astype(np.int32),
+                                              none.astype(np.uint32), none, False))
+    _cover(*args, starts, frags.x, frags.y, frags.mask, frags.tri, True)
     return frags
