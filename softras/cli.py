@@ -934,7 +934,8 @@ def build_parser() -> argparse.ArgumentParser:
         "bench", help="measure softras's quality levels against glref (time, ratio, error)",
         description="Render generated benchmark scenes with glref and with each softras quality level "
                     "in one process, warm, and print median times, ratios to glref, throughput and "
-                    "error against an exact 16-sample ground truth, peak memory, plus how cost grows.",
+                    "error against one filter-independent truth (exact precision, bilinear level-0 "
+                    "texels, dense supersampling), peak memory, plus how cost grows.",
     )
     bench.add_argument("--runs", type=int, default=3, help="timed runs per figure (median; default 3)")
     size = bench.add_mutually_exclusive_group()
