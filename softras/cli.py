@@ -53,8 +53,13 @@ from pathlib import Path
 
 __all__ = ["main", "CLIError", "DEFAULT_DEMO_SCENE"]
 
-#: The demo scene of the README quick start, in the source checkout.
-DEFAULT_DEMO_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "demo.json"
+_PACKAGE = Path(__file__).resolve().parent
+#: The demo scene of the README quick start: scenes/demo.json of the source
+#: checkout, or the copy an installed wheel holds in the package
+#: (softras/scenes/demo.json, pyproject.toml).
+DEFAULT_DEMO_SCENE = next((path for path in (_PACKAGE.parent / "scenes" / "demo.json",
+                                             _PACKAGE / "scenes" / "demo.json") if path.is_file()),
+                          _PACKAGE.parent / "scenes" / "demo.json")
 
 #: Where ``softras golden`` keeps the golden images: ``golden/`` of the current
 #: directory (relative: the user's project, never the installed package).
@@ -344,7 +349,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """``softras demo``: render the demo scene with both backends and compare."""
     scene = Path(args.scene)
     if not scene.is_file():
-        raise CLIError(f"{scene}: demo scene not found (run from a source checkout, or pass --scene)")
+        raise CLIError(f"{scene}: demo scene not found (pass --scene)")
     args.output = None
     return _compare_scene(str(scene), args, args.out_dir)
 

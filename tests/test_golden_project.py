@@ -79,7 +79,7 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
             if isinstance(node, ast.Name) and node.id == "__file__":
                 line = source.splitlines()[node.lineno - 1].strip()
                 found.append((str(path.relative_to(REPO)), line.split(" = ")[0]))
-    assert found == [("softras/cli.py", "DEFAULT_DEMO_SCENE"), ("softras/kernels/draw.py",
+    assert found == [("softras/cli.py", "_PACKAGE"), ("softras/kernels/draw.py",
                      'for path in sorted(Path(__file__).resolve().parent.glob("*.py")):'),
                      ("softras/kernels/prepare.py", 'return Path(__file__).resolve().parent / "__pycache__"'),
                      ("softras/kernels/prepare.py",

@@ -57,3 +57,26 @@ def test_the_python_api():
     image = softras.render(scene)
     assert image.shape == (4, 4, 4) and image.dtype == np.uint8
     assert softras.compare(image, image).passed
+
+
+def test_pyproject_ships_every_package_and_the_demo_scene():
+    """A wheel holds only the packages pyproject.toml names (an explicit
+    list: glref.shaders and softras.scenes map to folders outside the
+    packages), so a package folder missing there would install a softras
+    that cannot import; the demo scene ships as softras.scenes/demo.json."""
+    import tomllib
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    config = tomllib.loads((repo / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
+    folders = {".".join(init.parent.relative_to(repo).parts)
+               for top in ("softras", "glref") for init in (repo / top).rglob("__init__.py")}
+    listed = set(config["packages"])
+    assert folders <= listed, sorted(folders - listed)
+    mapped = {name: repo / folder for name, folder in config["package-dir"].items()}
+    assert listed - folders == set(mapped), sorted(listed - folders - set(mapped))
+    for name, patterns in config["package-data"].items():
+        for pattern in patterns:
+            assert list(mapped[name].glob(pattern)), (name, pattern)
+    assert "demo.json" in config["package-data"]["softras.scenes"]
+    assert mapped["softras.scenes"] / "demo.json" == repo / "scenes" / "demo.json"
