@@ -248,6 +248,37 @@ def resolve_llvmpipe_bytes(stored: np.ndarray) -> np.ndarray:
     return out
 
 
+def resolve_exact_bytes(stored: np.ndarray) -> np.ndarray:
+    """`resolve`'s exact box filter (``arithmetic="exact"``, uint8 output)
+    of an RGBA8 sample buffer given as its bytes: (H, W, S, 4) uint8, y-up
+    -> (H, W, 4) uint8, row 0 = the top, the bytes of
+    ``resolve(stored / 255.0)`` without its float buffers (8x the bytes'
+    size, twice over).  A compiled loop with numpy's operations in numpy's
+    order: each byte k as the float64 k / 255, summed over the samples in
+    sample order (numpy's mean over the sample axis, which is not the
+    innermost), divided by S, clamped, times 255, rounded half to even
+    (`unorm8_bytes`); tests/stages/test_resolve.py checks it against
+    `resolve` on every byte and sample count."""
+    stored = np.ascontiguousarray(stored, np.uint8)
+    out = np.empty(stored.shape[:2] + (4,), np.uint8)
+    _resolve_exact(stored, out)
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _resolve_exact(stored, out):
+    """out[H - 1 - y, x] = the exact mean of stored[y, x] (`resolve_exact_bytes`)."""
+    height, width, n_samples = stored.shape[0], stored.shape[1], stored.shape[2]
+    for y in numba.prange(height):
+        for x in range(width):
+            for c in range(4):
+                total = 0.0
+                for s in range(n_samples):
+                    total += stored[y, x, s, c] / 255.0
+                mean = min(max(total / n_samples, 0.0), 1.0)
+                out[height - 1 - y, x, c] = np.uint8(np.rint(mean * 255.0))
+
+
 @numba.njit(cache=True, parallel=True)
 def _resolve_bytes(stored, out):
     """out[H - 1 - y, x] = llvmpipe's float32 resolve of stored[y, x] (see

@@ -64,6 +64,23 @@ def test_compiled_byte_resolve_equals_the_float32_formula():
         np.testing.assert_array_equal(ops.resolve(stored / 255.0, arithmetic="llvmpipe"), expected)
 
 
+def test_compiled_exact_resolve_equals_the_float_resolve():
+    """`resolve_exact_bytes` (what the fast path's bytes take at a pattern
+    other than GL's) = `resolve`'s exact box filter of the k/255 values, for
+    every byte in every sample slot, random bytes and tie-heavy pixels (few
+    distinct bytes: means on a half step, where the summation order decides
+    the rounding; summing in reverse order changes thousands of these
+    bytes) at every sample count up to 32 and beyond; flipped."""
+    rng = np.random.default_rng(11)
+    for n_samples in list(range(1, 33)) + [64, 100]:
+        every = (np.arange(7 * 11 * n_samples * 4) % 256).reshape(7, 11, n_samples, 4)
+        random = rng.integers(0, 256, size=(24, 11, n_samples, 4))
+        ties = rng.integers(0, 3, size=(24, 11, n_samples, 4)) * rng.integers(1, 128, size=(24, 11, 1, 4))
+        stored = np.concatenate([every, random, ties]).astype(np.uint8)
+        np.testing.assert_array_equal(ops.resolve_exact_bytes(stored),
+                                      ops.resolve(stored / 255.0, arithmetic="exact"), err_msg=f"{n_samples}")
+
+
 def test_tent_weights_by_hand():
     """3 x 1 image, 2 x 2 grid samples (at .25/.75): the middle pixel white.
 
