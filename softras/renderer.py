@@ -1,7 +1,7 @@
 """Which renderer draws a scene: the compiled kernels, the readable stages, or GL.
 
-`render_scene` is softras's renderer: a gl-precision RGBA8 scene at GL's
-sample positions that uses only what `softras.kernels` implements is drawn by
+`render_scene` is softras's renderer: a gl-precision RGBA8 scene (up to 32
+samples a pixel, any pattern) that uses only what `softras.kernels` implements is drawn by
 their fused per-draw kernel, everything else by the readable stages of
 `softras.pipeline`; the two give the same bytes (tests/test_fastpath.py).
 `render` adds the choice of backend ("soft" or "gl", i.e. glref) behind
@@ -40,14 +40,13 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                         resolve_filter=resolve_filter, framebuffer=framebuffer, clipping=clipping,
                         texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
                         texture_bounds=texture_bounds, tie_rule=tie_rule)
-    # A gl-precision RGBA8 scene at GL's sample positions that uses only what
-    # the kernels implement gets the same bytes from their fused kernel
-    # (tests/test_fastpath.py).  A new option must either send scenes that use
-    # it past this test or be implemented there.
-    fast = (fast_path and job.rgba8 and job.gl_pattern and texture_filter is None
+    # A gl-precision RGBA8 scene that uses only what the kernels implement
+    # gets the same bytes from their fused kernel (tests/test_fastpath.py).
+    # A new option must either send scenes that use it past this test or be
+    # implemented there.
+    fast = (fast_path and job.rgba8 and texture_filter is None
             and texture_bounds is None and tie_rule == "left_bottom"
-            and kernels.unsupported(scene, precision=precision, samples=len(job.positions),
-                                    clipping=clipping) is None)
+            and kernels.unsupported(scene, precision=precision, clipping=clipping) is None)
     if fast:
         # Unless the kernels are ready (or compiled now), a background process
         # compiles them and the stages draw this scene (`softras.kernels.prepare`).
@@ -61,8 +60,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
         return stages.resolve(job, stages.render_samples(scene, job))
     stored = kernels.render_samples(scene, job.positions, texture_fixed_point=texture_fixed_point,
                                     reuse=True)             # copied below
-    if resolve_filter == "box":                             # GL's resolve, from the bytes
-        return ops.resolve_llvmpipe_bytes(stored)
+    if resolve_filter == "box":                             # from the bytes, as `stages.resolve`
+        return ops.resolve_llvmpipe_bytes(stored) if job.gl_pattern else ops.resolve_exact_bytes(stored)
     return stages.resolve(job, stored / 255.0)              # the stages' k/255 sample values
 
 

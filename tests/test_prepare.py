@@ -47,7 +47,7 @@ def test_the_preparation_scene_reaches_every_kernel(textured):
     shading model; textured: a filter of each kind, lanes and scalar; a
     line draw crossing the near plane."""
     scene = softras.load_scene(prepare.preparation_scene(4, textured))
-    assert fastpath.unsupported(scene, precision="gl", samples=4, clipping=None) is None
+    assert fastpath.unsupported(scene, precision="gl", clipping=None) is None
     assert {d.material.shading for d in scene.draws} == {"unlit", "flat", "gouraud", "phong"}
     for draw in scene.draws:
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)

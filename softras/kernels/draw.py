@@ -38,7 +38,8 @@ Line draws take `softras.kernels.lines` (the stages' clipping, set-up and
 coverage, then compiled per-fragment work into the same byte framebuffer).
 `unsupported(scene, ...)` says why a scene must take the general path (lit
 or textured lines, normal and bump maps, anisotropic textures, alpha-tested
-materials, other sample counts or clipping policies...).  Every shading model is drawn here.
+materials, other precisions or clipping policies...).  Every shading model
+is drawn here, at any sample count and positions.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
 `face_colors`): Gouraud per vertex
@@ -77,7 +78,7 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE
                                    _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
                                    _NLF, LANES, LaneBuffers)
 from softras.kernels.lines import draw_lines
-from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, face_colors, phong_inputs
+from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _uses_depth, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_whole_block, _sample_box, _tile_box)
@@ -86,13 +87,17 @@ from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangl
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_bilinear_fixed,
                                      _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
-from softras.pipeline import ops, setup, texture, vertex
+from softras.pipeline import ops, sampling, setup, texture, vertex
 from softras.pipeline.render import check_sample_memory
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
-# Sample counts the fast path renders (the positions are the pipeline's).
-FAST_SAMPLES = (1, 4)
+# Samples a tile driver draws at once, at any positions (the pipeline's
+# `softras.pipeline.sampling` patterns or a caller's): the stages' samples
+# per pass (coverage masks in one integer); more are drawn in passes, as the
+# stages draw them (`render_samples`).  GL's 1 and 4 samples have tile
+# drivers of their own (`driver_samples`); every other count shares one.
+MAX_PASS_SAMPLES = sampling.MAX_PASS_SAMPLES
 # Bytes a sample holds here: RGBA8 colour and a 24-bit depth in an int32
 # (the stages hold 32 for the colour alone: 4096^2 at 4x fits here, not there).
 SAMPLE_BYTES = 4 + 4
@@ -115,17 +120,15 @@ DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", 
 # ----------------------------------------------------------------------------- dispatch
 
 
-def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | None) -> str | None:
+def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | None:
     """Why ``scene`` must take the general pipeline, or None when this path renders it.
 
     The caller (`softras.renderer.render_scene`) has already checked the
-    options this path does not look at (RGBA8 framebuffer, GL's sample
-    pattern).
+    options this path does not look at (RGBA8 framebuffer, texture filter
+    and bounds, tie rule).
     """
     if precision != "gl":
         return "precision is not gl"
-    if samples not in FAST_SAMPLES:
-        return f"{samples} samples"
     if clipping not in (None, "llvmpipe"):
         return f"clipping {clipping!r}"
     for draw in scene.draws:
@@ -149,15 +152,28 @@ def unsupported(scene: Scene, *, precision: str, samples: int, clipping: str | N
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
                    reuse: bool = False) -> np.ndarray:
     """`softras.pipeline.render.render_samples` of a scene that `unsupported`
-    accepts, at GL's sample positions (S, 2).
+    accepts, at the sample positions (S, 2) in [0, 1): in the stages' passes
+    of at most MAX_PASS_SAMPLES (`softras.pipeline.sampling.sample_passes`).
 
     Returns the per-sample colour buffer (H, W, S, 4) uint8, GL's y-up rows:
     byte k where the general pipeline stores the float k/255.  reuse: the
     buffer is this thread's scratch colour buffer, overwritten by the next
     call (for a caller that copies it at once; saves the page faults of a
-    fresh buffer).
+    fresh buffer; one pass only).
     """
     check_sample_memory(scene, len(positions), SAMPLE_BYTES)
+    passes = sampling.sample_passes(len(positions))
+    if len(passes) == 1:
+        return _render_pass(scene, positions, texture_fixed_point, reuse)
+    color = np.empty((scene.height, scene.width, len(positions), 4), np.uint8)
+    for start, stop in passes:
+        color[:, :, start:stop] = _render_pass(scene, positions[start:stop], texture_fixed_point, True)
+    return color
+
+
+def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool, reuse: bool) -> np.ndarray:
+    """`render_samples` of at most MAX_PASS_SAMPLES positions (S, 2): the
+    draws into this pass's byte framebuffer, (H, W, S, 4) uint8 colour."""
     offsets, _ = setup.sample_offsets(positions, "gl")
     shape = (scene.height, scene.width, len(positions))
     depth = _scratch.take("depth", shape, np.int32)
@@ -216,24 +232,10 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
                       bool(textured and not flat and not lit and plain_colors(base)), flat, lit)
-    draw_tiles = _DRAW_TILES[len(offsets), textured]
+    draw_tiles = _DRAW_TILES[driver_samples(len(offsets)), textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
                lights, tuple(lighting), n_threads)
-
-
-def flat_corner_colors(scene: Scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Flat shading's colour of the draw's mesh triangles ``triangles`` (K,)
-    as the kernels read it: (K, 3, 4), the colour of
-    `softras.pipeline.render.flat_colors` (face normal, centroid and
-    provoking vertex, straight) at corner 0 and zeros at corners 1 and 2
-    (`softras.kernels.interpolate._lane_words` with ``flat``).  base : (V, 4)
-    the straight vertex colours times the material's.  The stages light the
-    same source triangles of the visible set-up triangles
-    (`softras.kernels.light.face_colors`: their operations, compiled)."""
-    out = np.zeros((len(triangles), 3, 4))
-    out[:, 0] = face_colors(scene, draw, base, draw.mesh.indices[triangles])
-    return out
 
 
 def plain_colors(base: np.ndarray) -> bool:
@@ -284,14 +286,27 @@ def _sources_stamp() -> str:
     return digest.hexdigest()
 
 
+# The tile drivers' sample counts (`driver_samples`): GL's 1 and 4, unrolled
+# (4 draws the 24k grid 14-16 % faster so, docs/speed.md), and ANY_SAMPLES,
+# any other count up to MAX_PASS_SAMPLES, read at run time.
+ANY_SAMPLES = 0
+DRIVER_SAMPLES = (1, 4, ANY_SAMPLES)
+
+
+def driver_samples(samples: int) -> int:
+    """The tile driver that draws ``samples`` samples a pixel: 1, 4 or ANY_SAMPLES."""
+    return samples if samples in (1, 4) else ANY_SAMPLES
+
+
 def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
-    the parallel tile driver compiled for one sample count (1 or 4,
-    `FAST_SAMPLES`) and textured or not, as constants (closure variables are
-    compile-time constants to numba, and part of its cache key): the compiler
-    unrolls the per-sample and per-quad loops and drops the texture code from
-    untextured draws, and a scene compiles only the variants it uses.
-    sources : `_sources_stamp`, in the cache key only."""
+    the parallel tile driver compiled for one sample count (`DRIVER_SAMPLES`:
+    1, 4, or ANY_SAMPLES for the count of the draw's sample table) and textured
+    or not, as constants (closure variables are compile-time constants to
+    numba, and part of its cache key): the compiler unrolls the per-sample
+    per-sample loops of 1 and 4 and drops the texture code from untextured draws,
+    and a scene compiles only the variants it uses.  sources :
+    `_sources_stamp`, in the cache key only."""
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, lights, lighting, n_threads):
@@ -309,10 +324,11 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         """
         stamp = sources                 # noqa: F841  (a closure variable: the cache key, see above)
         n_tiles = bins[0].shape[0] - 1
+        count = n_samples if n_samples != ANY_SAMPLES else samples[0].shape[0]
         for r in numba.prange(n_threads):
-            lanes = LaneBuffers(np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64),
+            lanes = LaneBuffers(np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + count, 2 * LANES), np.int64),
                                 np.zeros((8, LANES), np.uint64), np.empty((2, 4)),
-                                np.zeros((3, n_samples), np.int64))
+                                np.zeros((3, count), np.int64))
             # (One statement each: a tuple of records, built and unpacked,
             # trips numba's array analysis, see `softras.kernels.rasterize.Edges`.)
             bins_r = Bins(*bins)
@@ -327,7 +343,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
                                    lighting, lanes, n_samples)
                 else:
                     _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes,
-                               n_samples)
+                               count)
 
     return draw_tiles
 
@@ -435,11 +451,12 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
     texels, texels32, table = tex.bytes, tex.words, tex.levels
     lf, li, lu, texel = lanes.lf, lanes.li, lanes.lu, lanes.texel
     offsets, depth = samples.offsets, fb.depth
+    count = n_samples if n_samples != ANY_SAMPLES else offsets.shape[0]      # (a constant for 1 and 4)
     bin_start, bin_tri, tri_i, bbox = bins.start, bins.tri, tris.i, tris.bbox
     depth_func, write_z = state.depth_func, state.write_z
     use_depth = _uses_depth(depth_func, write_z)
     vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
-    full_mask = (1 << n_samples) - 1
+    full_mask = (1 << count) - 1
     box = _sample_box(offsets)
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
@@ -461,13 +478,13 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
             if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
                 n = _list_whole_block(bx, by, full_mask, lf, li)
             else:
-                n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples)
+                n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, count)
             if n == 0:
                 continue
             # The block's n lanes shaded.
             _lane_weights(n, t, tris.f, lf, tris.uv, True)               # weights and (s, t), vectorised
             if use_depth:
-                _lane_depths(n, t, tris.f, samples.positions, li, n_samples)   # (vectorised)
+                _lane_depths(n, t, tris.f, samples.positions, li, count)   # (vectorised)
             # The level of detail of every quad (before the depth test), kept on the
             # quad's first lane; whether a quad samples two levels.
             any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
@@ -480,7 +497,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                     p = li[_LI_COV, l]
                     if use_depth:
                         p = _depth_test_lane(p, li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
-                                             n_samples)
+                                             count)
                     li[_LI_PASS, l] = p
                     quad_passed |= p
                 block_passed |= quad_passed
@@ -516,7 +533,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                         lf[_LF_FRAC, l] = frac
             if block_passed == 0:
                 continue
-            words = state.plain and n_samples == 1 and vectorised     # texels straight into _LI_WORD
+            words = state.plain and count == 1 and vectorised     # texels straight into _LI_WORD
             if vectorised:
                 if block_two:                         # (the level count a constant in each copy)
                     _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
@@ -532,7 +549,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                 _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, True)
             elif not words:
                 _lane_words(n, t, tris.colors, lf, li, True, state.flat)
-            _write_lanes(n, li, fb.color32, state.blend, n_samples)
+            _write_lanes(n, li, fb.color32, state.blend, count)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -578,4 +595,4 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`).
 _SOURCES = _sources_stamp()
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
-               for n_samples in FAST_SAMPLES for textured in (False, True)}
+               for n_samples in DRIVER_SAMPLES for textured in (False, True)}

@@ -134,7 +134,7 @@ def _lane_words(n, t, colors, lf, li, textured, flat):
 
     flat: the triangle's colour is not interpolated
     (`softras.pipeline.render.flat_colors`): it is corner 0's, and corners 1
-    and 2 hold zeros (`softras.kernels.draw.flat_corner_colors`), so the
+    and 2 hold zeros (`softras.kernels.light.flat_corner_colors`), so the
     weights (1, 0, 0) give back corner 0's colour exactly, 1 c + 0 0 + 0 0 =
     c, whatever c (infinite or NaN included)."""
     corner_colors = _corner_colors(colors, t)

@@ -273,3 +273,17 @@ def face_colors(scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndar
                    np.ascontiguousarray(triangles, np.int64), np.ascontiguousarray(base), table, tuple(lighting),
                    out)
     return out
+
+
+def flat_corner_colors(scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Flat shading's colour of the draw's mesh triangles ``triangles`` (K,)
+    as the kernels read it: (K, 3, 4), the colour of
+    `softras.pipeline.render.flat_colors` (face normal, centroid and
+    provoking vertex, straight) at corner 0 and zeros at corners 1 and 2
+    (`softras.kernels.interpolate._lane_words` with ``flat``).  base : (V, 4)
+    the straight vertex colours times the material's.  The stages light the
+    same source triangles of the visible set-up triangles
+    (`face_colors`: their operations, compiled)."""
+    out = np.zeros((len(triangles), 3, 4))
+    out[:, 0] = face_colors(scene, draw, base, draw.mesh.indices[triangles])
+    return out

@@ -60,11 +60,16 @@ def mode() -> str:
 
 
 def variants(scene, samples: int) -> set[tuple[int, bool]]:
-    """The tile-driver variants (samples, textured) that a scene which
-    `softras.kernels.draw.unsupported` accepts needs, at ``samples`` (line
+    """The tile-driver variants (driver samples, textured) that a scene which
+    `softras.kernels.draw.unsupported` accepts needs, at ``samples`` drawn
+    in the stages' passes (`softras.kernels.draw.driver_samples` of each
+    pass: 1, 4, or 0 for any other count; line
     draws need none: `softras.kernels.lines` compiles in seconds)."""
-    return {(samples, draw.material.texture is not None) for draw in scene.draws
-            if draw.mesh.primitive == "triangles"}
+    from softras.kernels.draw import driver_samples
+    from softras.pipeline.sampling import sample_passes
+
+    return {(driver_samples(stop - start), draw.material.texture is not None)
+            for start, stop in sample_passes(samples) for draw in scene.draws if draw.mesh.primitive == "triangles"}
 
 
 @functools.cache
@@ -160,9 +165,9 @@ def preparation_scene(samples: int, textured: bool) -> dict:
 
 
 def prepare(variant: tuple[int, bool]) -> None:
-    """Compile ``variant`` (samples, textured) now unless it is ready: under
-    its lock, render `preparation_scene` on the compiled path, then mark it
-    ready."""
+    """Compile ``variant`` (driver samples, textured) now unless it is ready:
+    under its lock, render `preparation_scene` on the compiled path (at 2
+    samples for the driver of any count), then mark it ready."""
     if ready(variant):
         return
     from softras.kernels import draw
@@ -173,9 +178,11 @@ def prepare(variant: tuple[int, bool]) -> None:
         if ready(variant):                      # prepared by the process we waited for
             return
         samples, textured = variant
-        scene = load_scene(preparation_scene(samples, textured))
-        assert draw.unsupported(scene, precision="gl", samples=samples, clipping=None) is None
-        draw.render_samples(scene, sampling.sample_positions(samples))
+        positions = (sampling.sample_positions(samples) if samples else
+                     sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)
+        scene = load_scene(preparation_scene(samples or 1, textured))    # (a scene has 1 or 4)
+        assert draw.unsupported(scene, precision="gl", clipping=None) is None
+        draw.render_samples(scene, positions)
         _mark(variant).touch()
 
 
@@ -225,10 +232,11 @@ def ensure(variants, stages_can_draw: bool = True) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m softras.kernels.prepare 1u 4t ...``: prepare the variants
+    """``python -m softras.kernels.prepare 1u 0t ...``: prepare the variants
     (samples, then u untextured or t textured) at low priority."""
     parser = argparse.ArgumentParser(prog="python -m softras.kernels.prepare", description=main.__doc__)
-    parser.add_argument("variants", nargs="+", help="e.g. 1u (1 sample, untextured) or 4t (4, textured)")
+    parser.add_argument("variants", nargs="+",
+                        help="e.g. 1u (1 sample, untextured), 4t (4, textured) or 0t (any other count)")
     args = parser.parse_args(argv)
     for text in args.variants:
         prepare((int(text[:-1]), text[-1] == "t"))
