@@ -78,6 +78,25 @@ def test_measure_reports_every_level_with_errors_against_the_supersampled_truth(
     assert "from file" in bench.format_row(rows[0])
 
 
+def test_glref_is_timed_at_the_levels_gl_sample_count(monkeypatch):
+    """gl_msaa4 on a 1-sample scene is compared with glref's 4x MSAA; a
+    level at a pattern GL does not have, with glref at the scene's count."""
+    import softras
+    calls = []
+    real = softras.render
+
+    def render(scene, backend="soft", **options):
+        if backend == "gl":
+            calls.append(options.get("samples"))
+        return real(scene, backend=backend, **options)
+    monkeypatch.setattr(softras, "render", render)
+    rows = bench.measure("tiny", bench.grid_scene(2, 16), runs=1, errors=False, memory=False,
+                         levels={"gl": {"precision": "gl"}, "gl_msaa4": {"precision": "gl", "samples": 4},
+                                 "gl_16": {"precision": "gl", "samples": 16, "pattern": "rotated_grid"}})
+    assert {samples for samples in calls if samples is not None} == {4}, calls      # (16: GL has no such pattern)
+    assert rows[1].glref_seconds != rows[0].glref_seconds and rows[2].glref_seconds == rows[0].glref_seconds
+
+
 def test_file_times_takes_at_least_the_minimum_of_interleaved_pairs(monkeypatch):
     """From the file: a warm-up pair, then softras and glref alternately, each
     from a fresh load; at least E2E_MIN_PAIRS pairs while the budget lasts,
