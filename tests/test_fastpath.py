@@ -490,7 +490,7 @@ def test_quad_lod_equals_choose_levels():
     for mip, min_filter in ((0, "linear"), (1, "linear_mipmap_nearest"), (2, "linear_mipmap_linear")):
         width, height, n_levels = 64, 16, 7
         sampler = k_texture.Sampler(min_filter=1, mag_filter=0, mip=mip, wrap_s=0, wrap_t=0, fixed8=1,
-                                    levels=n_levels, vectorised=0)
+                                    levels=n_levels, vectorised=0, aniso=0)
         with np.errstate(all="ignore"):
             du = d[:, :2] * np.float32([width, height])
             dv = d[:, 2:] * np.float32([width, height])
@@ -503,6 +503,51 @@ def test_quad_lod_equals_choose_levels():
             if not magnified:
                 assert (level1, frac) == (choice.level1[i], choice.frac[i]), (d[i], mip)
             assert two == (not magnified and choice.level1[i] != choice.level0[i] and choice.frac[i] > 0)
+
+
+def test_aniso_level_equals_llvmpipe_aniso_levels():
+    """`k_texture._aniso_level` = `texture.llvmpipe_aniso_levels` on random
+    derivatives over 50 octaves and on zeros, subnormals, huge values,
+    infinities and NaN."""
+    from softras.pipeline import texture
+    rng = np.random.default_rng(5)
+    specials = np.float32([0, 1e-42, 1e-20, 1 / 256, 1, 3e19, 3e38, np.inf, -np.inf, np.nan])
+    d = (rng.standard_normal((3000, 4)) * 2.0 ** rng.integers(-30, 20, (3000, 1))).astype(np.float32)
+    d[:400] = specials[rng.integers(len(specials), size=(400, 4))]
+    width, height, n_levels = 64, 16, 7
+    with np.errstate(all="ignore"):
+        expected = texture.llvmpipe_aniso_levels(d[:, :2] * np.float32([width, height]),
+                                                 d[:, 2:] * np.float32([width, height]), n_levels)
+    got = [k_texture._aniso_level(*d[i], width, height, n_levels - 1) for i in range(len(d))]
+    assert got == expected.tolist()
+
+
+ANISO = [2, 16, 4.5, 1.5]       # (1.5 truncates to 1 in gl: not anisotropic)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("samples", [1, 4])
+def test_random_anisotropic_scenes_are_bit_identical(seed, samples):
+    """llvmpipe's anisotropic filter on the compiled path
+    (`k_texture._aniso_lane`, the stages' `ewa_texel`) equals the stages on
+    random textured scenes with every wrap and filter, uv up to +-60 (long
+    thin footprints)."""
+    data = random_scene(300 + seed, textured=True)
+    for name, tex in data["textures"].items():
+        tex["max_anisotropy"] = ANISO[(seed + int(name[1])) % len(ANISO)]
+    for k, node in enumerate(data["nodes"]):
+        node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1]][k % 2]).tolist()
+    scene = softras.load_scene(data)
+    kinds = {k_texture.texture_tables(softras.pipeline.texture.prepare(t), True)[0].aniso
+             for t in scene.textures.values()}
+    assert kinds == {0, 1}
+    assert_same(*both_paths(scene, samples=samples), f"random anisotropic scene seed {300 + seed}")
+
+
+def test_bench_anisotropic_floor_is_bit_identical():
+    from softras import bench
+    scene = softras.load_scene(bench.floor_scene(160, anisotropy=16))
+    assert_same(*both_paths(scene), "bench floor, anisotropy 16")
 
 
 def test_word_blend_equals_the_per_channel_blend():

@@ -37,8 +37,8 @@ bytes and depth as 24-bit integers (`softras.kernels.ops`).
 Line draws take `softras.kernels.lines` (the stages' clipping, set-up and
 coverage, then compiled per-fragment work into the same byte framebuffer).
 `unsupported(scene, ...)` says why a scene must take the general path (lit
-or textured lines, normal and bump maps, anisotropic textures, alpha-tested
-materials, other precisions or clipping policies...).  Every shading model
+or textured lines, normal and bump maps, alpha-tested materials, other
+precisions or clipping policies...).  Every shading model
 is drawn here, at any sample count and positions.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
@@ -84,8 +84,8 @@ from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _ed
                                        _list_whole_block, _sample_box, _tile_box)
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
-from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_bilinear_fixed,
-                                     _lanes_lod, _sample_lane, texture_tables)
+from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
+                                     _lanes_bilinear_fixed, _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import ops, sampling, setup, texture, vertex
 from softras.pipeline.render import check_sample_memory
@@ -143,7 +143,7 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | 
             return f"{draw.path}: alpha test (alpha_cutoff)"
         if material.texture is not None:
             tex = scene.textures[material.texture]
-            if (tex.max_anisotropy > 1 or tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
+            if (tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
                     or tex.mag_filter not in FILTER_CODES or tex.min_filter not in MIN_FILTERS):
                 return f"{draw.path}: texture sampler state"
     return None
@@ -448,7 +448,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
     an inlined callee's IR block by block, each block with its own copy of
     the callee's variable table)."""
     numba.literally(n_samples)
-    texels, texels32, table = tex.bytes, tex.words, tex.levels
+    texels, texels32, table, ewa = tex.bytes, tex.words, tex.levels, tex.ewa
     lf, li, lu, texel = lanes.lf, lanes.li, lanes.lu, lanes.texel
     offsets, depth = samples.offsets, fb.depth
     count = n_samples if n_samples != ANY_SAMPLES else offsets.shape[0]      # (a constant for 1 and 4)
@@ -488,6 +488,8 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
             # The level of detail of every quad (before the depth test), kept on the
             # quad's first lane; whether a quad samples two levels.
             any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
+            if sampler.aniso:                             # (one level each, never vectorised)
+                _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
             # Depth test (scalar); a quad without a passed sample samples level 0 alone.
             block_passed = 0
             block_two = False                             # a passed quad samples two levels
@@ -542,7 +544,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
             else:
                 for l in range(n):
                     if li[_LI_PASS, l]:
-                        _sample_lane(l, lf, li, texel, sampler, texels, texels32, table)
+                        _sample_lane(l, lf, li, texel, sampler, texels, texels32, table, ewa)
             # The fragment colour as llvmpipe's bytes, blended and written
             # (`softras.pipeline.ops.apply_fragments`).
             if state.lit:

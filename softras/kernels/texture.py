@@ -1,12 +1,14 @@
 """Texture sampling for the compiled path.
 
 Mirrors `softras.pipeline.texture.sample` in gl precision for the samplers
-`softras.kernels.draw.unsupported` lets through (no anisotropy; nearest or
-linear, with or without mipmaps; any wrap; 8.8 fixed-point or float
-weights): the level of detail per 2x2 quad (`_quad_lod`), the texel
-addresses, the fetches and the filters, either per lane (`_sample_lane`, any
-filter) or vectorised over the lanes (`_lanes_bilinear_fixed`, 8.8 bilinear
-with power-of-two or clamped wraps).  The 8.8 filters run on RGBA8 texels
+`softras.kernels.draw.unsupported` lets through (nearest or linear, with or
+without mipmaps; any wrap; 8.8 fixed-point or float weights; llvmpipe's
+anisotropic filter): the level of detail per 2x2 quad (`_quad_lod`,
+`_lanes_aniso_levels`), the texel addresses, the fetches and the filters,
+either per lane (`_sample_lane`, any filter, the anisotropic one with the
+stages' own `softras.pipeline.texture.ewa_texel`) or vectorised over the
+lanes (`_lanes_bilinear_fixed`, 8.8 bilinear with power-of-two or clamped
+wraps).  The 8.8 filters run on RGBA8 texels
 spread into 16-bit lanes (`softras.kernels.rgba8`).
 
 `texture_tables` turns a prepared texture (`softras.pipeline.texture.prepare`)
@@ -29,6 +31,7 @@ from softras.pipeline.texture import WRAP_CODES, wrap_index
 from softras.scene.texels import levels_buffer
 
 FILTER_CODES = {"nearest": 0, "linear": 1}
+_LINEAR = FILTER_CODES["linear"]                # (a constant the kernels read)
 MIN_FILTERS = ("nearest", "linear") + texture_stage.MIPMAP_FILTERS
 
 # A texture's sampler state as the kernels read it, every field an int:
@@ -36,21 +39,25 @@ MIN_FILTERS = ("nearest", "linear") + texture_stage.MIPMAP_FILTERS
 # mip mode (0 none, 1 nearest, 2 linear), the wraps of s and t (WRAP_CODES),
 # fixed8 (1: llvmpipe's 8.8 fixed-point weights,
 # `softras.pipeline.texture.uses_fixed_point`), the number of levels used,
-# and whether the vectorised filter applies (`_lanes_bilinear_fixed`).
+# whether the vectorised filter applies (`_lanes_bilinear_fixed`), and
+# whether the sampler is llvmpipe's anisotropic one (`_aniso_lane`).
 Sampler = namedtuple("Sampler", ["min_filter", "mag_filter", "mip", "wrap_s", "wrap_t", "fixed8", "levels",
-                                 "vectorised"])
+                                 "vectorised", "aniso"])
 
 # A prepared texture's texels as the kernels read them (`texture_tables`): the
 # used mip levels as one flat buffer of bytes (N,) uint8, the same buffer as
-# RGBA8 words (N / 4,) uint32, and the level table (L, 3) int64: byte offset,
-# width, height per level.  (Kept apart from the `Sampler`: numba's parallel
+# RGBA8 words (N / 4,) uint32, the level table (L, 3) int64: byte offset,
+# width, height per level, and the anisotropic filter's weights (1024,)
+# float32 (`softras.pipeline.texture.llvmpipe_ewa_table`).  (Kept apart from the `Sampler`: numba's parallel
 # loops take a record of arrays or of scalars as an argument, not a record
 # holding a record.)
-Texels = namedtuple("Texels", ["bytes", "words", "levels"])
+Texels = namedtuple("Texels", ["bytes", "words", "levels", "ewa"])
+
+_EWA = texture_stage.llvmpipe_ewa_table()
 
 # What an untextured draw passes (the same types: one compiled kernel).
-NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0),
-              Texels(np.zeros(4, np.uint8), np.zeros(1, np.uint32), np.zeros((1, 3), np.int64)))
+NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0, 0),
+              Texels(np.zeros(4, np.uint8), np.zeros(1, np.uint32), np.zeros((1, 3), np.int64), _EWA))
 
 
 _tables_cache: dict = {}
@@ -90,9 +97,10 @@ def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
     vectorised = (fixed8 and min_filter == mag_filter == FILTER_CODES["linear"]
                   and all(mode == "clamp_to_edge" or (size & (size - 1)) == 0
                           for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))))
+    aniso = texture_stage.effective_anisotropy(tex.max_anisotropy, True) > 1    # (then never fixed8)
     sampler = Sampler(min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t], int(fixed8),
-                      len(levels), int(vectorised))
-    return sampler, Texels(flat, flat.view(np.uint32), table)
+                      len(levels), int(vectorised), int(aniso))
+    return sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
 
 
 # ----------------------------------------------------------------------------- addresses and filters
@@ -277,6 +285,74 @@ def _lanes_lod(n, sampler, width0, height0, lf, li):
     return any_two
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _aniso_level(ddx_s, ddx_t, ddy_s, ddy_t, width0, height0, last):
+    """`softras.pipeline.texture.llvmpipe_aniso_levels` of one quad's
+    derivatives (float32 values) on a texture whose level 0 is width0 x
+    height0: ``pmin2 = min(|du|^2, |dv|^2)`` in float32 (NaN if either is),
+    ``lod = 0.5 fast_log2(pmin2)``, the level ``clamp(trunc(lod), 0, last)``
+    (NaN -> 0, +inf -> last).  `_frexp32` gives a level-0 exponent for 0 and
+    subnormals where frexp gives a lower one: both make lod negative."""
+    w32 = np.float32(width0)
+    h32 = np.float32(height0)
+    du0 = np.float32(ddx_s) * w32
+    du1 = np.float32(ddx_t) * h32
+    dv0 = np.float32(ddy_s) * w32
+    dv1 = np.float32(ddy_t) * h32
+    px2 = du0 * du0 + du1 * du1
+    py2 = dv0 * dv0 + dv1 * dv1
+    pmin2 = -_nan_max(-px2, -py2)                       # np.minimum: NaN if either is
+    m, e = _frexp32(pmin2)
+    lod = np.float32(0.5) * np.float32(np.float32(e - 1) + (np.float32(2) * m - np.float32(1)))
+    if not lod > 0:                                     # (NaN and negative: level 0)
+        return 0
+    return min(np.int64(lod), last) if lod < np.float32(1e6) else last
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lanes_aniso_levels(n, sampler, width0, height0, lf, li):
+    """`_aniso_level` of each of the n / 4 quads listed in the lanes (their
+    derivatives as `_lanes_lod` takes them), kept on the quad's first lane
+    as `_lanes_lod` keeps its choice: one level, the linear image filter
+    (the scalar filter's bilinear where no texel got weight, as
+    `softras.pipeline.texture.sample_anisotropic_llvmpipe`), no blend."""
+    for q in range(n >> 2):
+        l = 4 * q
+        s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
+        level = _aniso_level(np.float32(lf[_LF_S, l + 1]) - s_tl, np.float32(lf[_LF_T, l + 1]) - t_tl,
+                             np.float32(lf[_LF_S, l + 2]) - s_tl, np.float32(lf[_LF_T, l + 2]) - t_tl,
+                             width0, height0, sampler.levels - 1)
+        li[_LI_LEVEL, l] = level
+        li[_LI_LEVEL + 1, l] = level
+        li[_LI_IMGF, l] = _LINEAR
+        li[_LI_TWO, l] = 0
+        lf[_LF_FRAC, l] = 0.0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _aniso_lane(l, lf, li, sampler, texels, table, ewa):
+    """llvmpipe's anisotropic filter of lane l (`softras.pipeline.texture.ewa_texel`
+    on its quad's `_lanes_aniso_levels` level, the quad's derivatives in
+    float32, its own (s, t) in float32) into the _LF_TEX rows; returns False
+    where no texel got weight (the caller filters bilinearly)."""
+    q = l & -4
+    s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
+    level = li[_LI_LEVEL, l]
+    r, g, b, a, _ = texture_stage.ewa_texel(
+        texels, table[level, 0] >> 2, table[level, 1], table[level, 2], level,
+        np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l]),
+        np.float32(lf[_LF_S, q + 1]) - s_tl, np.float32(lf[_LF_S, q + 2]) - s_tl,
+        np.float32(lf[_LF_T, q + 1]) - t_tl, np.float32(lf[_LF_T, q + 2]) - t_tl,
+        table[0, 1], table[0, 2], sampler.wrap_s, sampler.wrap_t, ewa)
+    if r != r:
+        return False
+    lf[_LF_TEX, l] = np.float64(r)
+    lf[_LF_TEX + 1, l] = np.float64(g)
+    lf[_LF_TEX + 2, l] = np.float64(b)
+    lf[_LF_TEX + 3, l] = np.float64(a)
+    return True
+
+
 # ----------------------------------------------------------------------------- the lanes
 
 
@@ -332,12 +408,15 @@ def _lanes_bilinear_fixed(n, n_levels, words, lf, li, lu, texels32, sampler):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _sample_lane(l, lf, li, texel, sampler, texels, texels32, table):
+def _sample_lane(l, lf, li, texel, sampler, texels, texels32, table, ewa):
     """`softras.pipeline.texture.sample` (gl precision) of lane l on its quad's level(s), any
-    filter and wrap (the scalar path beside `_lanes_bilinear_fixed`); sampler :
-    the texture's `Sampler`; texels, texels32, table : its `Texels` (arrays
-    passed one by one: taken out of the record per lane, they would cost
-    reference counts per lane); texel : (2, 4) float64 scratch."""
+    filter and wrap (the scalar path beside `_lanes_bilinear_fixed`), the
+    anisotropic filter (`_aniso_lane`) included; sampler : the texture's
+    `Sampler`; texels, texels32, table, ewa : its `Texels` (arrays passed one
+    by one: taken out of the record per lane, they would cost reference
+    counts per lane); texel : (2, 4) float64 scratch."""
+    if sampler.aniso != 0 and _aniso_lane(l, lf, li, sampler, texels, table, ewa):
+        return
     wrap_s, wrap_t, fixed8 = sampler.wrap_s, sampler.wrap_t, sampler.fixed8 != 0
     s_px, t_px = lf[_LF_S, l], lf[_LF_T, l]
     image_filter = li[_LI_IMGF, l]

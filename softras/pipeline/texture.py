@@ -519,13 +519,35 @@ def _nearest_index_f32(c, size, mode):
 @numba.njit(cache=True)
 def _llvmpipe_ewa_kernel(texels, offsets, widths, heights, level, s, t, dsdx, dsdy, dtdx, dtdy,
                          width0, height0, wrap_s, wrap_t, table, out, reads):
-    """lp_build_sample_aniso, one sample at a time, in float32.
+    """lp_build_sample_aniso, one sample at a time, in float32 (`ewa_texel`).
 
     level, s, t, dsdx, dsdy, dtdx, dtdy : (N,) — the level, the normalized
     coordinates and their per-quad derivatives (float32).  Writes out (N, 4)
     float32 filtered RGBA in [0, 1] (NaN where no texel got weight) and
     reads (N,) the number of texels fetched with a non-zero weight.
     """
+    flat = texels.reshape(-1)
+    for k in range(len(s)):
+        lvl = level[k]
+        r, g, b, a, n_reads = ewa_texel(flat, offsets[lvl], widths[lvl], heights[lvl], lvl, s[k], t[k], dsdx[k],
+                                        dsdy[k], dtdx[k], dtdy[k], width0, height0, wrap_s, wrap_t, table)
+        out[k, 0] = r
+        out[k, 1] = g
+        out[k, 2] = b
+        out[k, 3] = a
+        reads[k] = n_reads
+
+
+@numba.njit(cache=True, inline="always")
+def ewa_texel(texels, base, wl, hl, lvl, s, t, dsdx, dsdy, dtdx, dtdy, width0, height0, wrap_s, wrap_t, table):
+    """lp_build_sample_aniso of one sample in float32 (see the notes above):
+    level lvl, wl x hl texels from texel ``base`` of the levels' bytes
+    ``texels`` (4 a texel); s, t and the quad's derivatives dsdx, dsdy, dtdx,
+    dtdy float32; level 0 width0 x height0; wraps as WRAP_CODES; table the
+    EWA weights (`llvmpipe_ewa_table`).  Returns (r, g, b, a, reads): the
+    float32 filtered RGBA in [0, 1] (NaN where no texel got weight) and the
+    number of texels fetched with a non-zero weight.  The compiled path's
+    lanes call it too (`softras.kernels.texture._aniso_lane`)."""
     f0 = np.float32(0.0)
     f1 = np.float32(1.0)
     f2 = np.float32(2.0)
@@ -535,74 +557,65 @@ def _llvmpipe_ewa_kernel(texels, offsets, widths, heights, level, s, t, dsdx, ds
     inv255 = np.float32(1.0 / 255.0)
     fw0 = np.float32(width0)
     fh0 = np.float32(height0)
-    for k in range(len(s)):
-        lvl = level[k]
-        wl = widths[lvl]
-        hl = heights[lvl]
-        base = offsets[lvl]
-        scaling = f1 / np.float32(1 << lvl)
-        ux = dsdx[k] * fw0 * scaling                 # level-l texels per pixel
-        uy = dsdy[k] * fw0 * scaling
-        vx = dtdx[k] * fh0 * scaling
-        vy = dtdy[k] * fh0 * scaling
-        a = vx * vx + vy * vy + f1
-        b = (ux * vx + uy * vy) * np.float32(-2.0)
-        c = ux * ux + uy * uy + f1
-        f = a * c - b * b / f4
-        d = (f0 - b * b) + a * c * f4
-        box_u = f2 / d * np.sqrt(d * c * f)
-        box_v = f2 / d * np.sqrt(a * d * f)
-        scale = lut_max / f
-        a = a * scale
-        b = b * scale
-        c = c * scale
-        ddq = a * f2
-        tex_u = s[k] * (fw0 * scaling) - half        # level-l texel space, centres at integers
-        tex_v = t[k] * (fh0 * scaling) - half
-        u0 = np.int64(np.floor(tex_u - box_u))
-        u1 = np.int64(np.ceil(tex_u + box_u))
-        v0 = np.int64(np.floor(tex_v - box_v))
-        v1 = np.int64(np.ceil(tex_v + box_v))
-        big_u = np.float32(u0) - tex_u
-        dq_base = (big_u * f2 + f1) * a
-        q_base = big_u * big_u * a
-        acc0 = f0
-        acc1 = f0
-        acc2 = f0
-        acc3 = f0
-        den = f0
-        n_reads = 0
-        fwl = np.float32(wl)
-        fhl = np.float32(hl)
-        for v in range(v0, v1 + 1):
-            big_v = np.float32(v) - tex_v
-            dq = big_v * b + dq_base
-            q = (c * big_v + b * big_u) * big_v + q_base
-            cv = np.float32(v) / fhl
-            j = _nearest_index_f32(cv, hl, wrap_t)
-            for u in range(u0, u1 + 1):
-                if q < np.float32(1024.0):           # trunc(q) <= 1023
-                    qi = np.int64(q) if q > f0 else 0
-                    w = table[qi & 1023]
-                    if w != f0:
-                        i = _nearest_index_f32(np.float32(u) / fwl, wl, wrap_s)
-                        texel = texels[base + j * wl + i]
-                        acc0 += np.float32(texel[0]) * inv255 * w
-                        acc1 += np.float32(texel[1]) * inv255 * w
-                        acc2 += np.float32(texel[2]) * inv255 * w
-                        acc3 += np.float32(texel[3]) * inv255 * w
-                        den += w
-                        n_reads += 1
-                q = q + dq
-                dq = dq + ddq
-        if den == f0:
-            out[k, :] = np.nan
-        else:
-            out[k, 0] = acc0 / den
-            out[k, 1] = acc1 / den
-            out[k, 2] = acc2 / den
-            out[k, 3] = acc3 / den
-        reads[k] = n_reads
+    scaling = f1 / np.float32(1 << lvl)
+    ux = dsdx * fw0 * scaling                    # level-l texels per pixel
+    uy = dsdy * fw0 * scaling
+    vx = dtdx * fh0 * scaling
+    vy = dtdy * fh0 * scaling
+    a = vx * vx + vy * vy + f1
+    b = (ux * vx + uy * vy) * np.float32(-2.0)
+    c = ux * ux + uy * uy + f1
+    f = a * c - b * b / f4
+    d = (f0 - b * b) + a * c * f4
+    box_u = f2 / d * np.sqrt(d * c * f)
+    box_v = f2 / d * np.sqrt(a * d * f)
+    scale = lut_max / f
+    a = a * scale
+    b = b * scale
+    c = c * scale
+    ddq = a * f2
+    tex_u = s * (fw0 * scaling) - half           # level-l texel space, centres at integers
+    tex_v = t * (fh0 * scaling) - half
+    u0 = np.int64(np.floor(tex_u - box_u))
+    u1 = np.int64(np.ceil(tex_u + box_u))
+    v0 = np.int64(np.floor(tex_v - box_v))
+    v1 = np.int64(np.ceil(tex_v + box_v))
+    big_u = np.float32(u0) - tex_u
+    dq_base = (big_u * f2 + f1) * a
+    q_base = big_u * big_u * a
+    acc0 = f0
+    acc1 = f0
+    acc2 = f0
+    acc3 = f0
+    den = f0
+    n_reads = 0
+    fwl = np.float32(wl)
+    fhl = np.float32(hl)
+    for v in range(v0, v1 + 1):
+        big_v = np.float32(v) - tex_v
+        dq = big_v * b + dq_base
+        q = (c * big_v + b * big_u) * big_v + q_base
+        cv = np.float32(v) / fhl
+        j = _nearest_index_f32(cv, hl, wrap_t)
+        for u in range(u0, u1 + 1):
+            if q < np.float32(1024.0):               # trunc(q) <= 1023
+                qi = np.int64(q) if q > f0 else 0
+                w = table[qi & 1023]
+                if w != f0:
+                    i = _nearest_index_f32(np.float32(u) / fwl, wl, wrap_s)
+                    at = (base + j * wl + i) * 4
+                    acc0 += np.float32(texels[at]) * inv255 * w
+                    acc1 += np.float32(texels[at + 1]) * inv255 * w
+                    acc2 += np.float32(texels[at + 2]) * inv255 * w
+                    acc3 += np.float32(texels[at + 3]) * inv255 * w
+                    den += w
+                    n_reads += 1
+            q = q + dq
+            dq = dq + ddq
+    if den == f0:
+        nan = np.float32(np.nan)
+        return nan, nan, nan, nan, n_reads
+    return acc0 / den, acc1 / den, acc2 / den, acc3 / den, n_reads
 
 
 _flat_cache: "weakref.WeakKeyDictionary[MipTexture, FlatLevels]" = weakref.WeakKeyDictionary()
