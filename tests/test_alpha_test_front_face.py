@@ -4,7 +4,9 @@
   below the cutoff (`softras.pipeline.fragment.alpha_test`), glref's shaders
   ``discard`` it; the pictures must be identical, byte for byte, with 1 and 4
   samples, unlit and lit, and a discarded fragment writes no depth (the
-  surface behind it shows).  The fast path declares such draws unsupported.
+  surface behind it shows).  The compiled path draws them (its bytes equal
+  the stages': tests/test_fastpath.py), so here it is the one checked
+  against GL.
 - ``front_face``: "cw" makes clockwise triangles front-facing for culling in
   the stages, the kernels and GL alike; flat shading keeps its face normal
   from the vertex order (as GL's geometry shader computes it).
@@ -55,7 +57,7 @@ def both(data):
 @pytest.mark.parametrize("samples, shading", [(1, "unlit"), (4, "unlit"), (1, "phong"), (4, "gouraud")])
 def test_masked_material_soft_equals_gl(samples, shading):
     scene, soft, gl = both(masked_scene(samples=samples, shading=shading))
-    assert kernels.unsupported(scene, precision="gl", clipping=None) is not None
+    assert kernels.unsupported(scene, precision="gl", clipping=None) is None       # (the compiled path)
     np.testing.assert_array_equal(soft, gl)
     # The test did something: some of the quad is cut away (the red quad and
     # the background show through), some is kept.

@@ -250,6 +250,27 @@ def test_any_sample_count_and_pattern_is_bit_identical(kind, samples, pattern, r
                 f"{kind} scene seed {seed}, {samples} samples {pattern}, {resolve} resolve")
 
 
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("samples", [1, 4])
+def test_random_alpha_tested_scenes_are_bit_identical(seed, samples):
+    """Alpha-tested materials (glTF MASK) on the compiled path
+    (`k_interpolate._lane_alpha_test`: before the depth test, whole
+    fragments) equal the stages byte for byte: unlit, Gouraud, flat and
+    Phong, textured (odd seeds) or not, random vertex alphas, every depth
+    function and blend mode."""
+    shading = ["unlit", "gouraud", "flat", "phong"][seed % 4]
+    data = (random_scene(400 + seed, textured=seed % 2 == 1) if shading == "unlit"
+            else lit_scene(400 + seed, shading))
+    for k, node in enumerate(data["nodes"]):
+        node["material"] = dict(node.get("material", {}), alpha_cutoff=[0.5, 0.3, 0.7, 0.0][k % 4])
+    for tex in data["textures"].values():           # (texel alphas on both sides of the cutoffs)
+        if tex["procedural"] == "checker":
+            tex.update(color0=[0.9, 0.8, 0.7, 0.9], color1=[0.2, 0.3, 0.4, 0.35])
+    scene = softras.load_scene(data)
+    assert all(d.material.alpha_cutoff is not None for d in scene.draws)
+    assert_same(*both_paths(scene, samples=samples), f"random alpha-tested {shading} scene seed {400 + seed}")
+
+
 def test_phong_colors_are_the_stages_to_the_bit():
     """`k_light._phong_colors` lights lanes with the float64 bits of
     `softras.pipeline.render.phong_attributes` and

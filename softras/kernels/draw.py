@@ -37,8 +37,8 @@ bytes and depth as 24-bit integers (`softras.kernels.ops`).
 Line draws take `softras.kernels.lines` (the stages' clipping, set-up and
 coverage, then compiled per-fragment work into the same byte framebuffer).
 `unsupported(scene, ...)` says why a scene must take the general path (lit
-or textured lines, normal and bump maps, alpha-tested materials, other
-precisions or clipping policies...).  Every shading model
+or textured lines, normal and bump maps, other precisions or clipping
+policies...).  Every shading model
 is drawn here, at any sample count and positions.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
@@ -73,7 +73,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
-from softras.kernels.interpolate import _lane_depths, _lane_weights, _lane_words
+from softras.kernels.interpolate import _lane_alpha_test, _lane_depths, _lane_weights, _lane_words, plain_colors
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE, _LI_COV, _LI_IMGF,
                                    _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
                                    _NLF, LANES, LaneBuffers)
@@ -113,8 +113,10 @@ Samples = namedtuple("Samples", ["offsets", "positions"])
 # whether the fragment colour is the texel's own (`plain_colors`), and
 # whether the colour is the triangle's, not interpolated (flat shading,
 # `flat_corner_colors`), and whether it is lit per fragment (Phong shading,
-# `softras.kernels.light._phong_words`).
-DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat", "lit"])
+# `softras.kernels.light._phong_words`), and the alpha test: whether the
+# material has one, and its cutoff (`softras.kernels.interpolate._lane_alpha_test`).
+DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat", "lit", "alpha_test",
+                                     "cutoff"])
 
 
 # ----------------------------------------------------------------------------- dispatch
@@ -139,8 +141,6 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | 
             continue
         if material.normal_map is not None or material.bump_map is not None:
             return f"{draw.path}: normal or bump map"
-        if material.alpha_cutoff is not None:
-            return f"{draw.path}: alpha test (alpha_cutoff)"
         if material.texture is not None:
             tex = scene.textures[material.texture]
             if (tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
@@ -230,30 +230,14 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
     tiles_y = (height + TILE - 1) // TILE
     bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
+    cutoff = material.alpha_cutoff
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
-                      bool(textured and not flat and not lit and plain_colors(base)), flat, lit)
+                      bool(textured and not flat and not lit and cutoff is None and plain_colors(base)), flat, lit,
+                      cutoff is not None, float(cutoff or 0.0))
     draw_tiles = _DRAW_TILES[driver_samples(len(offsets)), textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
                lights, tuple(lighting), n_threads)
-
-
-def plain_colors(base: np.ndarray) -> bool:
-    """Whether a textured draw's fragment colour is its texel's bytes as they
-    are: every vertex colour (V, 4, straight, times the material's) is
-    opaque white.
-
-    The fragment colour is then (w0 + w1 + w2)^2 * k / 255 per colour
-    channel and (w0 + w1 + w2) * k / 255 for alpha
-    (`softras.kernels.interpolate._shade_word`; corner
-    colours of clipped triangles are sums of clip weights, 1 within a few
-    ulp).  At a covered pixel centre the perspective weights are within
-    rounding of [0, 1] and sum to 1 within a few ulp, so the value is k/255 within ~1e-15,
-    and `softras.pipeline.ops.unorm8` gives back k (the product is within ~1e-13 of the
-    integer k, nowhere near a rounding boundary; tests/test_fastpath.py
-    checks every k).  The kernel uses it at one sample only, where the
-    weights are taken at the covered sample itself."""
-    return bool(np.all(base == 1.0))
 
 
 _scratch = _Scratch()
@@ -497,7 +481,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                 quad_passed = 0
                 for l in range(4 * q, 4 * q + 4):
                     p = li[_LI_COV, l]
-                    if use_depth:
+                    if use_depth and not state.alpha_test:      # (alpha test: after the texels, below)
                         p = _depth_test_lane(p, li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
                                              count)
                     li[_LI_PASS, l] = p
@@ -551,6 +535,12 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                 _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, True)
             elif not words:
                 _lane_words(n, t, tris.colors, lf, li, True, state.flat)
+            if state.alpha_test:
+                _lane_alpha_test(n, t, tris.colors, lf, li, _LI_PASS, True, state.flat, state.cutoff)
+                for l in range(n):
+                    if use_depth and li[_LI_PASS, l]:
+                        li[_LI_PASS, l] = _depth_test_lane(li[_LI_PASS, l], li, l, depth, li[_LI_PY, l],
+                                                           li[_LI_PX, l], depth_func, write_z, count)
             _write_lanes(n, li, fb.color32, state.blend, count)
 
 
@@ -572,6 +562,11 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     state : the `DrawState` (scalars: free)."""
     depth_func, write_z = state.depth_func, state.write_z
     use_depth = _uses_depth(depth_func, write_z)
+    if state.alpha_test:                    # (before the depth test: the colour at every lane)
+        for l in range(n):
+            lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
+        _lane_weights(n, t, tri_f, lf, uv, False)
+        _lane_alpha_test(n, t, colors, lf, li, _LI_COV, False, state.flat, state.cutoff)
     if use_depth:
         _lane_depths(n, t, tri_f, positions, li, n_samples)
     kept = 0

@@ -147,6 +147,24 @@ def _lane_words(n, t, colors, lf, li, textured, flat):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
+def _lane_alpha_test(n, t, colors, lf, li, row, textured, flat, cutoff):
+    """`softras.pipeline.fragment.alpha_test` (gl) of the n lanes: the
+    fragment's alpha as `_shade_word` makes it (triangle t's corner alphas
+    under the _LF_W weights, or corner 0's when flat, times the _LF_TEX
+    texel's alpha when textured), rounded to float32, against the float32
+    cutoff; a discarded lane's mask in row ``row`` of li becomes 0 (no depth
+    or colour write for any sample).  NaN alphas are kept, as ``~(a <
+    cutoff)`` keeps them."""
+    alphas = (colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3])
+    cutoff32 = np.float32(cutoff)
+    for l in range(n):
+        w = (1.0, 0.0, 0.0) if flat else (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
+        alpha = _mix(w, alphas) * (lf[_LF_TEX + 3, l] if textured else 1.0)
+        if np.float32(alpha) < cutoff32:
+            li[row, l] = 0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _lane_depths(n, t, tri_f, positions, li, n_samples):
     """`softras.pipeline.interpolate.depth_at_samples` then
     `softras.pipeline.ops.quantize_depth`: depth of triangle t at every lane's
@@ -161,3 +179,21 @@ def _lane_depths(n, t, tri_f, positions, li, n_samples):
             zx = (li[_LI_PX, l] + ox) - x0
             zy = (li[_LI_PY, l] + oy) - y0
             li[_LI_Z + s, l] = _depth_k(z0 + dzdx * zx + dzdy * zy)
+
+
+def plain_colors(base: np.ndarray) -> bool:
+    """Whether a textured draw's fragment colour is its texel's bytes as they
+    are: every vertex colour (V, 4, straight, times the material's) is
+    opaque white.
+
+    The fragment colour is then (w0 + w1 + w2)^2 * k / 255 per colour
+    channel and (w0 + w1 + w2) * k / 255 for alpha
+    (`softras.kernels.interpolate._shade_word`; corner
+    colours of clipped triangles are sums of clip weights, 1 within a few
+    ulp).  At a covered pixel centre the perspective weights are within
+    rounding of [0, 1] and sum to 1 within a few ulp, so the value is k/255 within ~1e-15,
+    and `softras.pipeline.ops.unorm8` gives back k (the product is within ~1e-13 of the
+    integer k, nowhere near a rounding boundary; tests/test_fastpath.py
+    checks every k).  The kernel uses it at one sample only, where the
+    weights are taken at the covered sample itself."""
+    return bool(np.all(base == 1.0))
