@@ -217,6 +217,22 @@ def _frexp32(x):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
+def _lengths2(ddx_s, ddx_t, ddy_s, ddy_t, width0, height0):
+    """The squared lengths |du|^2, |dv|^2 (float32) of one quad's texel-space
+    derivative vectors (`softras.pipeline.texture.texel_derivatives`, gl:
+    the float32 derivatives of (s, t) times the level-0 size width0 x
+    height0), as `softras.pipeline.texture.rho_squared` and
+    `softras.pipeline.texture.llvmpipe_aniso_levels` sum them."""
+    w32 = np.float32(width0)
+    h32 = np.float32(height0)
+    du0 = np.float32(ddx_s) * w32
+    du1 = np.float32(ddx_t) * h32
+    dv0 = np.float32(ddy_s) * w32
+    dv1 = np.float32(ddy_t) * h32
+    return du0 * du0 + du1 * du1, dv0 * dv0 + dv1 * dv1
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _quad_lod(sampler, width0, height0, ddx_s, ddx_t, ddy_s, ddy_t):
     """The level choice of `softras.pipeline.texture.sample` (gl precision:
     `softras.pipeline.texture.rho_squared` and `softras.pipeline.texture.choose_levels`)
@@ -227,13 +243,8 @@ def _quad_lod(sampler, width0, height0, ddx_s, ddx_t, ddy_s, ddy_t):
     float -> int64 conversion of numpy and llvmpipe does (the "integer
     indefinite", negative)."""
     mip, last, mag_filter, min_filter = sampler.mip, sampler.levels - 1, sampler.mag_filter, sampler.min_filter
-    w32 = np.float32(width0)
-    h32 = np.float32(height0)
-    du0 = np.float32(ddx_s) * w32
-    du1 = np.float32(ddx_t) * h32
-    dv0 = np.float32(ddy_s) * w32
-    dv1 = np.float32(ddy_t) * h32
-    rho2 = _nan_max(du0 * du0 + du1 * du1, dv0 * dv0 + dv1 * dv1)      # float32
+    px2, py2 = _lengths2(ddx_s, ddx_t, ddy_s, ddy_t, width0, height0)
+    rho2 = _nan_max(px2, py2)                           # float32
     magnified = not (rho2 > 1)
     level0 = 0
     level1 = 0
@@ -293,14 +304,7 @@ def _aniso_level(ddx_s, ddx_t, ddy_s, ddy_t, width0, height0, last):
     ``lod = 0.5 fast_log2(pmin2)``, the level ``clamp(trunc(lod), 0, last)``
     (NaN -> 0, +inf -> last).  `_frexp32` gives a level-0 exponent for 0 and
     subnormals where frexp gives a lower one: both make lod negative."""
-    w32 = np.float32(width0)
-    h32 = np.float32(height0)
-    du0 = np.float32(ddx_s) * w32
-    du1 = np.float32(ddx_t) * h32
-    dv0 = np.float32(ddy_s) * w32
-    dv1 = np.float32(ddy_t) * h32
-    px2 = du0 * du0 + du1 * du1
-    py2 = dv0 * dv0 + dv1 * dv1
+    px2, py2 = _lengths2(ddx_s, ddx_t, ddy_s, ddy_t, width0, height0)
     pmin2 = -_nan_max(-px2, -py2)                       # np.minimum: NaN if either is
     m, e = _frexp32(pmin2)
     lod = np.float32(0.5) * np.float32(np.float32(e - 1) + (np.float32(2) * m - np.float32(1)))
