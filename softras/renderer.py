@@ -1,8 +1,8 @@
 """Which renderer draws a scene: the compiled kernels, the readable stages, or GL.
 
-`render_scene` is softras's renderer: a gl-precision RGBA8 scene (up to 32
-samples a pixel, any pattern) that uses only what `softras.kernels` implements is drawn by
-their fused per-draw kernel, everything else by the readable stages of
+`render_scene` is softras's renderer: a gl-precision RGBA8 scene (any
+sample count and pattern) that uses only what `softras.kernels` implements
+is drawn by their fused per-draw kernel, everything else by the readable stages of
 `softras.pipeline`; the two give the same bytes (tests/test_fastpath.py).
 `render` adds the choice of backend ("soft" or "gl", i.e. glref) behind
 `softras.render`.

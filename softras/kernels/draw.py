@@ -38,8 +38,9 @@ Line draws take `softras.kernels.lines` (the stages' clipping, set-up and
 coverage, then compiled per-fragment work into the same byte framebuffer).
 `unsupported(scene, ...)` says why a scene must take the general path (lit
 or textured lines, normal and bump maps, other precisions or clipping
-policies...).  Every shading model
-is drawn here, at any sample count and positions.
+policies...).  Every shading model is drawn here, at any sample count and
+positions, with every texture filter GL has (anisotropic included) and the
+alpha test.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
 `face_colors`): Gouraud per vertex
@@ -288,9 +289,9 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     1, 4, or ANY_SAMPLES for the count of the draw's sample table) and textured
     or not, as constants (closure variables are compile-time constants to
     numba, and part of its cache key): the compiler unrolls the per-sample
-    per-sample loops of 1 and 4 and drops the texture code from untextured draws,
-    and a scene compiles only the variants it uses.  sources :
-    `_sources_stamp`, in the cache key only."""
+    loops of 1 and 4 and drops the texture code from untextured draws, and a
+    scene compiles only the variants it uses.  sources : `_sources_stamp`, in
+    the cache key only."""
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, lights, lighting, n_threads):
@@ -423,7 +424,9 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
     every lane's own (s, t) is its pixel's.  Lanes outside the triangle are
     the quad's helper pixels: computed, never written.  With ``state.plain``
     (`plain_colors`) at one sample the filtered texel's bytes are the
-    fragment's colour word.
+    fragment's colour word.  An anisotropic sampler takes one level per quad
+    (`softras.kernels.texture._lanes_aniso_levels`); an alpha-tested draw
+    samples every covered quad, then discards, then depth-tests.
 
     The block's shading is written out in the block loop rather than called:
     as a function of its own (a call per block, with the records' arrays
@@ -554,7 +557,8 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
     depths (vectorised), the depth test keeping the lanes with a passed
     sample (scalar, without branches), perspective weights and colour bytes
-    (vectorised), the writes (scalar).
+    (vectorised), the writes (scalar); an alpha-tested draw's alpha test
+    comes first, on weights at every lane.
 
     The arrays one by one, not as `Triangles`, `Samples`, `Framebuffer` and
     `LaneBuffers` records: this runs about once per small triangle, and the

@@ -48,9 +48,9 @@ Sampler = namedtuple("Sampler", ["min_filter", "mag_filter", "mip", "wrap_s", "w
 # used mip levels as one flat buffer of bytes (N,) uint8, the same buffer as
 # RGBA8 words (N / 4,) uint32, the level table (L, 3) int64: byte offset,
 # width, height per level, and the anisotropic filter's weights (1024,)
-# float32 (`softras.pipeline.texture.llvmpipe_ewa_table`).  (Kept apart from the `Sampler`: numba's parallel
-# loops take a record of arrays or of scalars as an argument, not a record
-# holding a record.)
+# float32 (`softras.pipeline.texture.llvmpipe_ewa_table`).  (Kept apart
+# from the `Sampler`: numba's parallel loops take a record of arrays or of
+# scalars as an argument, not a record holding a record.)
 Texels = namedtuple("Texels", ["bytes", "words", "levels", "ewa"])
 
 _EWA = texture_stage.llvmpipe_ewa_table()
