@@ -32,7 +32,19 @@ def pytest_addoption(parser):
 
 def pytest_sessionstart(session):
     """``pytest --update-golden`` runs ``softras golden --update`` in the repository's root
-    (its ./scenes and ./golden, wherever pytest was started), then the tests."""
+    (its ./scenes and ./golden, wherever pytest was started), then the tests.
+
+    Under pytest-xdist each worker first prepares its share of the compiled
+    kernels' variants (`softras.kernels.prepare`; a no-op once they are
+    ready): otherwise the first tests of every worker need the same variant
+    and all but one worker wait on its lock while one core compiles."""
+    worker, count = os.environ.get("PYTEST_XDIST_WORKER"), os.environ.get("PYTEST_XDIST_WORKER_COUNT")
+    if worker and count:
+        from softras.kernels import draw, prepare
+
+        variants = [(samples, textured) for samples in draw.DRIVER_SAMPLES for textured in (False, True)]
+        for variant in variants[int(worker.removeprefix("gw")) % int(count)::int(count)]:
+            prepare.prepare(variant)
     if not session.config.getoption("--update-golden", default=False):
         return
     from softras.cli import main
