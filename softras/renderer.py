@@ -14,7 +14,6 @@ import numpy as np
 
 from softras.kernels import draw as kernels
 from softras.kernels import prepare
-from softras.pipeline import ops
 from softras.pipeline import render as stages
 from softras.scene import Scene, load_scene
 
@@ -59,10 +58,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     if not fast:
         return stages.resolve(job, stages.render_samples(scene, job))
     stored = kernels.render_samples(scene, job.positions, texture_fixed_point=texture_fixed_point,
-                                    reuse=True)             # copied below
-    if resolve_filter == "box":                             # from the bytes, as `stages.resolve`
-        return ops.resolve_llvmpipe_bytes(stored) if job.gl_pattern else ops.resolve_exact_bytes(stored)
-    return stages.resolve(job, stored / 255.0)              # the stages' k/255 sample values
+                                    reuse=True)             # (the resolve copies it)
+    return stages.resolve_bytes(job, stored)
 
 
 def render(scene, backend: str = "soft", **options) -> np.ndarray:

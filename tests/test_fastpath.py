@@ -26,7 +26,7 @@ from softras.kernels import rasterize as k_rasterize
 from softras.kernels import rgba8 as k_rgba8
 from softras.kernels import setup as k_setup
 from softras.kernels import texture as k_texture
-from softras.pipeline import fragment, vertex
+from softras.pipeline import fragment, sampling, vertex
 from softras.renderer import render_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
@@ -226,7 +226,7 @@ def test_random_phong_scenes_are_bit_identical(seed, samples):
 # count (`fastpath.ANY_SAMPLES`), more than MAX_PASS_SAMPLES in passes, with
 # the stages' exact resolve (box) or the tent.
 OTHER_SAMPLES = [(2, "halton", "box"), (9, "rotated_grid", "box"), (16, "jittered", "tent"),
-                 (fastpath.MAX_PASS_SAMPLES, "poisson", "box"), (4, "grid", "tent"), (49, "grid", "box")]
+                 (sampling.MAX_PASS_SAMPLES, "poisson", "box"), (4, "grid", "tent"), (49, "grid", "box")]
 
 
 @pytest.mark.parametrize("samples, pattern, resolve", OTHER_SAMPLES)
@@ -500,14 +500,22 @@ def test_frexp32_equals_math_frexp():
         assert e == 0 and (m == x or (m != m and x != x))
 
 
+def quad_derivatives(seed: int) -> np.ndarray:
+    """(3000, 4) float32 quad derivatives (ddx_s, ddx_t, ddy_s, ddy_t) over 50
+    octaves, the first 400 rows drawn from zero, subnormal, huge, infinite
+    and NaN values."""
+    rng = np.random.default_rng(seed)
+    specials = np.float32([0, 1e-42, 1e-20, 1 / 256, 1, 3e19, 3e38, np.inf, -np.inf, np.nan])
+    d = (rng.standard_normal((3000, 4)) * 2.0 ** rng.integers(-30, 20, (3000, 1))).astype(np.float32)
+    d[:400] = specials[rng.integers(len(specials), size=(400, 4))]
+    return d
+
+
 def test_quad_lod_equals_choose_levels():
     """`_quad_lod` (selects, bit tricks) = `texture.choose_levels` (gl) on random
     derivatives over 50 octaves, zero, subnormal, huge, inf and NaN ones."""
     from softras.pipeline import texture
-    rng = np.random.default_rng(4)
-    specials = np.float32([0, 1e-42, 1e-20, 1 / 256, 1, 3e19, 3e38, np.inf, -np.inf, np.nan])
-    d = (rng.standard_normal((3000, 4)) * 2.0 ** rng.integers(-30, 20, (3000, 1))).astype(np.float32)
-    d[:400] = specials[rng.integers(len(specials), size=(400, 4))]
+    d = quad_derivatives(4)
     for mip, min_filter in ((0, "linear"), (1, "linear_mipmap_nearest"), (2, "linear_mipmap_linear")):
         width, height, n_levels = 64, 16, 7
         sampler = k_texture.Sampler(min_filter=1, mag_filter=0, mip=mip, wrap_s=0, wrap_t=0, fixed8=1,
@@ -531,10 +539,7 @@ def test_aniso_level_equals_llvmpipe_aniso_levels():
     derivatives over 50 octaves and on zeros, subnormals, huge values,
     infinities and NaN."""
     from softras.pipeline import texture
-    rng = np.random.default_rng(5)
-    specials = np.float32([0, 1e-42, 1e-20, 1 / 256, 1, 3e19, 3e38, np.inf, -np.inf, np.nan])
-    d = (rng.standard_normal((3000, 4)) * 2.0 ** rng.integers(-30, 20, (3000, 1))).astype(np.float32)
-    d[:400] = specials[rng.integers(len(specials), size=(400, 4))]
+    d = quad_derivatives(5)
     width, height, n_levels = 64, 16, 7
     with np.errstate(all="ignore"):
         expected = texture.llvmpipe_aniso_levels(d[:, :2] * np.float32([width, height]),

@@ -75,7 +75,7 @@ import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
 from softras.kernels.interpolate import _lane_alpha_test, _lane_depths, _lane_weights, _lane_words, plain_colors
-from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LI_BASE, _LI_COV, _LI_IMGF,
+from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LF_W, _LI_BASE, _LI_COV, _LI_IMGF,
                                    _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
                                    _NLF, LANES, LaneBuffers)
 from softras.kernels.lines import draw_lines
@@ -93,12 +93,6 @@ from softras.pipeline.render import check_sample_memory
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
-# Samples a tile driver draws at once, at any positions (the pipeline's
-# `softras.pipeline.sampling` patterns or a caller's): the stages' samples
-# per pass (coverage masks in one integer); more are drawn in passes, as the
-# stages draw them (`render_samples`).  GL's 1 and 4 samples have tile
-# drivers of their own (`driver_samples`); every other count shares one.
-MAX_PASS_SAMPLES = sampling.MAX_PASS_SAMPLES
 # Bytes a sample holds here: RGBA8 colour and a 24-bit depth in an int32
 # (the stages hold 32 for the colour alone: 4096^2 at 4x fits here, not there).
 SAMPLE_BYTES = 4 + 4
@@ -153,8 +147,9 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | 
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
                    reuse: bool = False) -> np.ndarray:
     """`softras.pipeline.render.render_samples` of a scene that `unsupported`
-    accepts, at the sample positions (S, 2) in [0, 1): in the stages' passes
-    of at most MAX_PASS_SAMPLES (`softras.pipeline.sampling.sample_passes`).
+    accepts, at any sample positions (S, 2) in [0, 1): in the stages' passes
+    of at most `softras.pipeline.sampling.MAX_PASS_SAMPLES` (coverage masks
+    in one integer; `softras.pipeline.sampling.sample_passes`).
 
     Returns the per-sample colour buffer (H, W, S, 4) uint8, GL's y-up rows:
     byte k where the general pipeline stores the float k/255.  reuse: the
@@ -173,7 +168,7 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
 
 
 def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool, reuse: bool) -> np.ndarray:
-    """`render_samples` of at most MAX_PASS_SAMPLES positions (S, 2): the
+    """`render_samples` of one pass's positions (S, 2): the
     draws into this pass's byte framebuffer, (H, W, S, 4) uint8 colour."""
     offsets, _ = setup.sample_offsets(positions, "gl")
     shape = (scene.height, scene.width, len(positions))
@@ -273,7 +268,7 @@ def _sources_stamp() -> str:
 
 # The tile drivers' sample counts (`driver_samples`): GL's 1 and 4, unrolled
 # (4 draws the 24k grid 14-16 % faster so, docs/speed.md), and ANY_SAMPLES,
-# any other count up to MAX_PASS_SAMPLES, read at run time.
+# any other count of a pass, read at run time.
 ANY_SAMPLES = 0
 DRIVER_SAMPLES = (1, 4, ANY_SAMPLES)
 
@@ -584,8 +579,12 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
         li[_LI_PASS, kept] = p
         lf[_LF_CX, kept] = px + 0.5
         lf[_LF_CY, kept] = py + 0.5
+        if state.alpha_test:                # (its weights, computed above, go with the lane)
+            for c in range(3):
+                lf[_LF_W + c, kept] = lf[_LF_W + c, l]
         kept += p != 0
-    _lane_weights(kept, t, tri_f, lf, uv, False)
+    if not state.alpha_test:
+        _lane_weights(kept, t, tri_f, lf, uv, False)
     if state.lit:
         _phong_words(kept, t, colors, lit, lf, li, lights, lighting, False)
     else:

@@ -722,9 +722,9 @@ def rasterize_lines(window: np.ndarray, width: int, height: int, precision: str 
         ends = ends.astype(np.float32).astype(np.float64)
     centre = 0.5 + attribute_shift(precision, rectangular)
     args = (qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, int(width), int(height))
-    none = np.zeros(0, np.int64)
-    frags, starts = Fragments.allocate(_cover(*args, none, ends, none.astype(np.int32), none.astype(np.int32),
-                                              none.astype(np.uint32), none, np.zeros(0), False))
+    empty, none = Fragments.allocate(np.zeros(0, np.int64))      # (the count pass writes nothing)
+    frags, starts = Fragments.allocate(_cover(*args, none, ends, empty.x, empty.y, empty.mask, empty.tri,
+                                              np.zeros(0), False))
     out_t = np.empty(len(frags), np.float64)
     _cover(*args, starts, ends, frags.x, frags.y, frags.mask, frags.tri, out_t, True)
     return frags, out_t

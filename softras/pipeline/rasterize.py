@@ -170,8 +170,7 @@ def rasterize(setup: TriangleSetup, offsets: np.ndarray, unit: float) -> Fragmen
             np.ascontiguousarray(setup.edge_inclusive),
             np.ascontiguousarray(setup.bbox), np.ascontiguousarray(offsets, dtype),
             int(unit) if dtype.kind == "i" else float(unit))
-    none = np.zeros(0, np.int64)
-    frags, starts = Fragments.allocate(_cover(*args, none, none.astype(np.int32), none.astype(np.int32),
-                                              none.astype(np.uint32), none, False))
+    empty, none = Fragments.allocate(np.zeros(0, np.int64))      # (the count pass writes nothing)
+    frags, starts = Fragments.allocate(_cover(*args, none, empty.x, empty.y, empty.mask, empty.tri, False))
     _cover(*args, starts, frags.x, frags.y, frags.mask, frags.tri, True)
     return frags

@@ -262,9 +262,26 @@ def resolve(job: Job, color: np.ndarray) -> np.ndarray:
     (H, W, S, 4) of `render_samples`: GL's MSAA resolve (llvmpipe's float32
     arithmetic) for GL's patterns in gl precision, the exact float64 mean
     otherwise (`softras.pipeline.ops.resolve`)."""
-    arithmetic = "llvmpipe" if job.precision == "gl" and job.gl_pattern else "exact"
-    return ops.resolve(color, job.positions, filter=job.resolve_filter, arithmetic=arithmetic,
+    return ops.resolve(color, job.positions, filter=job.resolve_filter, arithmetic=_arithmetic(job),
                        output="uint8" if job.rgba8 else "float32")
+
+
+def resolve_bytes(job: Job, stored: np.ndarray) -> np.ndarray:
+    """`resolve` of an RGBA8 job's samples given as their bytes, (H, W, S, 4)
+    uint8, byte k for the stages' k/255 (the compiled path's buffer): the box
+    filter straight from the bytes (`ops.resolve_llvmpipe_bytes`,
+    `ops.resolve_exact_bytes`, no float buffers), the tent from the k/255
+    values.  The same picture as ``resolve(job, stored / 255.0)``."""
+    if job.resolve_filter == "box":
+        llvmpipe = _arithmetic(job) == "llvmpipe"
+        return ops.resolve_llvmpipe_bytes(stored) if llvmpipe else ops.resolve_exact_bytes(stored)
+    return resolve(job, stored / 255.0)
+
+
+def _arithmetic(job: Job) -> str:
+    """The resolve's arithmetic: llvmpipe's float32 for GL's patterns in gl
+    precision, the exact float64 mean otherwise."""
+    return "llvmpipe" if job.precision == "gl" and job.gl_pattern else "exact"
 
 
 def vertex_colors(mesh) -> np.ndarray:
