@@ -73,6 +73,7 @@ and llvmpipe's line setup is kept in one place as the Mesa source it mirrors.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numba
@@ -179,55 +180,75 @@ def clip_lines(clip: np.ndarray, indices: np.ndarray, *, precision: str = "gl",
     non-finite end point are dropped.  Order is preserved (draw order).
     """
     clip = np.asarray(clip, np.float64)
-    indices = np.asarray(indices, np.int64).reshape(-1, 2)
-    gl = precision == "gl"
-    ftype = np.float32 if gl else np.float64
-    c = clip.astype(ftype)
-    planes = clip_planes(policy, width, height).astype(ftype)
-    # The draw module's dot4, left to right, each step rounded to float32.
-    dist = c[:, 0:1] * planes[:, 0]
-    for k in range(1, 4):
-        dist = dist + c[:, k:k + 1] * planes[:, k]
-    outside = dist < 0
+    indices = np.ascontiguousarray(np.asarray(indices, np.int64).reshape(-1, 2))
+    ftype = np.float32 if precision == "gl" else np.float64
+    with np.errstate(over="ignore"):            # (beyond float32: inf, as in the draw module)
+        c = np.ascontiguousarray(clip.astype(ftype))
+    planes = np.ascontiguousarray(clip_planes(policy, width, height).astype(ftype))
     finite = np.isfinite(clip).all(axis=1)
-    m0 = outside[indices[:, 0]]
-    m1 = outside[indices[:, 1]]
-    keep = ~(m0 & m1).any(axis=1) & finite[indices].all(axis=1)
-
-    kept = np.nonzero(keep)[0]
-    out_clip = c[indices[kept]].astype(np.float64)                   # (L, 2, 4)
-    out_weights = np.broadcast_to(np.eye(2), (len(kept), 2, 2)).copy()
-    out_generated = np.zeros((len(kept), 2), bool)
-    survives = np.ones(len(kept), bool)
-    crossing = np.nonzero((m0[kept] | m1[kept]).any(axis=1))[0]
-    _clip_crossing(crossing, kept, indices, dist, m0, m1, c, ftype(0), out_clip, out_weights, out_generated,
-                   survives)
-    return ClippedLines(out_clip[survives], kept[survives].astype(np.int64),
-                        out_weights[survives], out_generated[survives])
+    n = len(indices)
+    out = ClippedLines(np.empty((n, 2, 4)), np.empty(n, np.int64), np.empty((n, 2, 2)), np.empty((n, 2), bool))
+    count = _clip_all(c, finite, indices, planes, ftype(0), out.clip, out.weights, out.generated, out.source)
+    return ClippedLines(out.clip[:count], out.source[:count], out.weights[:count], out.generated[:count])
 
 
 @numba.njit(cache=True)
-def _clip_crossing(crossing, kept, indices, dist, m0, m1, c, zero, out_clip, out_weights, out_generated,
-                   survives):
-    """`clip_lines`' parametric clipping of the kept lines ``crossing`` (rows
-    of kept) with an end point outside some plane, in place: per plane
-    either end point is outside of (ffs order), t0 / t1 grow, the line is
-    dropped (survives False) once t0 + t1 >= 1, else its outside end points
-    are replaced by ``v0 + t0 (v1 - v0)`` / ``v1 + t1 (v0 - v1)`` with their
-    weights and generated flags.  dist (N, 6), c (N, 4): the plane distances
-    and clip positions in the draw module's type (float32 in gl, float64 in
-    exact), every operation in that type, zero its 0 (Python's ``max(t, x)``:
-    x only when x > t)."""
-    for k in crossing:
-        line = kept[k]
+def _plane_distances(c, planes):
+    """The draw module's dot4 of every vertex c (N, 4) with every plane
+    (P, 4), left to right, each step in c's type (float32 in gl precision,
+    rounded at each step): (N, P)."""
+    dist = np.empty((c.shape[0], planes.shape[0]), c.dtype)
+    for v in range(c.shape[0]):
+        for p in range(planes.shape[0]):
+            d = c[v, 0] * planes[p, 0]
+            for k in range(1, 4):
+                d = d + c[v, k] * planes[p, k]
+            dist[v, p] = d
+    return dist
+
+
+@numba.njit(cache=True)
+def _clip_all(c, finite, indices, planes, zero, out_clip, out_weights, out_generated, source):
+    """`clip_lines` of every line of indices (M, 2) (`_clip_line`, in order):
+    the survivors written to rows 0 .. count - 1 of out_clip (M, 2, 4),
+    out_weights (M, 2, 2), out_generated (M, 2) and source (M,) (the input
+    line).  c (N, 4): the clip positions in the draw module's type, finite
+    (N,) whether the float64 positions are finite, planes (6, 4) in c's
+    type, zero its 0.  Returns count."""
+    dist = _plane_distances(c, planes)
+    count = 0
+    for line in range(indices.shape[0]):
         i0, i1 = indices[line, 0], indices[line, 1]
-        t0 = zero
-        t1 = zero
-        for plane in range(m0.shape[1]):
-            if not (m0[line, plane] or m1[line, plane]):
-                continue
+        if finite[i0] and finite[i1] and _clip_line(c, dist, i0, i1, zero, out_clip, out_weights,
+                                                    out_generated, count):
+            source[count] = line
+            count += 1
+    return count
+
+
+@numba.njit(cache=True, inline="always")
+def _clip_line(c, dist, i0, i1, zero, out_clip, out_weights, out_generated, k):
+    """Mesa's do_clip_line of the line from vertex i0 to vertex i1, written
+    to row k of out_clip, out_weights and out_generated (see `clip_lines`).
+    dist (N, 6): the vertices' plane distances (`_plane_distances`), c and
+    zero as `_clip_all`'s; every operation in c's type (Python's ``max(t,
+    x)`` written out: x only when x > t).  Returns False when the line is
+    dropped: both end points outside one plane, or t0 + t1 >= 1."""
+    outside0, outside1 = False, False
+    for plane in range(dist.shape[1]):
+        o0, o1 = dist[i0, plane] < 0, dist[i1, plane] < 0
+        if o0 and o1:
+            return False
+        outside0 |= o0
+        outside1 |= o1
+    t0 = zero
+    t1 = zero
+    if outside0 or outside1:
+        for plane in range(dist.shape[1]):
             d0 = dist[i0, plane]
             d1 = dist[i1, plane]
+            if not (d0 < 0 or d1 < 0):
+                continue
             if d1 < 0:
                 x1 = d1 / (d1 - d0)
                 t1 = x1 if x1 > t1 else t1
@@ -235,26 +256,17 @@ def _clip_crossing(crossing, kept, indices, dist, m0, m1, c, zero, out_clip, out
                 x0 = d0 / (d0 - d1)
                 t0 = x0 if x0 > t0 else t0
             if t0 + t1 >= 1:
-                survives[k] = False
-                break
-        if not survives[k]:
-            continue
-        outside0, outside1 = False, False
-        for plane in range(m0.shape[1]):
-            outside0 |= m0[line, plane]
-            outside1 |= m1[line, plane]
-        if outside0:
-            for j in range(4):
-                out_clip[k, 0, j] = c[i0, j] + t0 * (c[i1, j] - c[i0, j])
-            out_weights[k, 0, 0] = 1.0 - np.float64(t0)
-            out_weights[k, 0, 1] = np.float64(t0)
-            out_generated[k, 0] = True
-        if outside1:
-            for j in range(4):
-                out_clip[k, 1, j] = c[i1, j] + t1 * (c[i0, j] - c[i1, j])
-            out_weights[k, 1, 0] = np.float64(t1)
-            out_weights[k, 1, 1] = 1.0 - np.float64(t1)
-            out_generated[k, 1] = True
+                return False
+    for j in range(4):
+        out_clip[k, 0, j] = c[i0, j] + t0 * (c[i1, j] - c[i0, j]) if outside0 else c[i0, j]
+        out_clip[k, 1, j] = c[i1, j] + t1 * (c[i0, j] - c[i1, j]) if outside1 else c[i1, j]
+    out_weights[k, 0, 0] = 1.0 - np.float64(t0) if outside0 else 1.0
+    out_weights[k, 0, 1] = np.float64(t0) if outside0 else 0.0
+    out_weights[k, 1, 0] = np.float64(t1) if outside1 else 0.0
+    out_weights[k, 1, 1] = 1.0 - np.float64(t1) if outside1 else 1.0
+    out_generated[k, 0] = outside0
+    out_generated[k, 1] = outside1
+    return True
 
 
 # --------------------------------------------------------------------------- setup (numba)
@@ -458,15 +470,19 @@ def _setup_line(x1, y1, x2, y2, rectangular, pixel_offset, gl, qx, qy):
 # --------------------------------------------------------------------------- rasterization (numba)
 
 
+# A quad's edge i as a plane function E = dcdx (x - X) + dcdy (Y - y) of
+# the raster point (X, Y), from its corner (x, y) = (qx[i], qy[i]) to the
+# next, with adj whether E == 0 is inside (`_quad_planes`).  A record of
+# scalars: compiled code keeps it in registers.
+Plane = namedtuple("Plane", ["dcdx", "dcdy", "x", "y", "adj"])
+
+
 @numba.njit(cache=True, inline="always")
-def _inside_all(qx, qy, adj, X, Y):
+def _inside_all(planes, X, Y):
     """All four plane functions E_i = dcdx (x_i - X) + dcdy (Y - y_i) > 0 (>= 0 where adj)."""
-    for i in range(4):
-        j = (i + 1) & 3
-        dcdx = qy[i] - qy[j]
-        dcdy = qx[i] - qx[j]
-        e = dcdx * (qx[i] - X) + dcdy * (Y - qy[i])
-        if not (e > 0.0 or (e == 0.0 and adj[i])):
+    for p in planes:
+        e = p.dcdx * (p.x - X) + p.dcdy * (Y - p.y)
+        if not (e > 0.0 or (e == 0.0 and p.adj)):
             return False
     return True
 
@@ -548,56 +564,21 @@ def _raster_quad(qx, qy, bottom_edge_rule, gl, offsets, unit, width, height,
     """Cover one line quad; write fragments from `start` when `write`.  Returns the count.
 
     Candidates are found per pixel row from the quad's extent in that row's
-    sample band (a superset); the four exact plane tests decide.
+    sample band (a superset, `_row_span`); the four exact plane tests decide
+    (`_pixel_mask`).  (`softras.kernels.lines` walks the same rows and
+    columns.)
     """
-    adj = np.zeros(4, np.bool_)
-    for i in range(4):
-        j = (i + 1) & 3
-        dcdx = qy[i] - qy[j]
-        dcdy = qx[i] - qx[j]
-        if dcdx < 0.0:
-            adj[i] = True
-        elif dcdx == 0.0:
-            adj[i] = (dcdy > 0.0) if bottom_edge_rule == 0 else (dcdy < 0.0)
+    planes = _quad_planes(qx, qy, bottom_edge_rule)
     region = np.array([0, width - 1, 0, height - 1])
     if gl and not _binned_region(qx, qy, bottom_edge_rule, offsets.shape[0] > 1, width, height, region):
         return 0
-    n_samples = offsets.shape[0]
-    min_ox = offsets[:, 0].min()
-    max_ox = offsets[:, 0].max()
-    min_oy = offsets[:, 1].min()
-    max_oy = offsets[:, 1].max()
-    ymin = min(min(qy[0], qy[1]), min(qy[2], qy[3]))
-    ymax = max(max(qy[0], qy[1]), max(qy[2], qy[3]))
-    py0 = max(int(math.floor((ymin - max_oy) / unit)) - 1, region[2])
-    py1 = min(int(math.ceil((ymax - min_oy) / unit)) + 1, region[3])
+    box = _offset_box(offsets)
+    py0, py1 = _quad_rows(qy, unit, box, region)
     count = 0
     for py in range(py0, py1 + 1):
-        lo_y = py * unit + min_oy
-        hi_y = py * unit + max_oy
-        lo = np.inf
-        hi = -np.inf
-        for i in range(4):
-            if lo_y <= qy[i] <= hi_y:
-                lo = min(lo, qx[i])
-                hi = max(hi, qx[i])
-            for j in range(i + 1, 4):
-                for b in (lo_y, hi_y):
-                    da = qy[i] - b
-                    db = qy[j] - b
-                    if (da < 0.0 and db > 0.0) or (da > 0.0 and db < 0.0):
-                        xb = qx[i] + (b - qy[i]) * (qx[j] - qx[i]) / (qy[j] - qy[i])
-                        lo = min(lo, xb)
-                        hi = max(hi, xb)
-        if lo > hi:
-            continue
-        px0 = max(int(math.floor((lo - max_ox) / unit)) - 1, region[0])
-        px1 = min(int(math.ceil((hi - min_ox) / unit)) + 1, region[1])
+        px0, px1 = _row_span(qx, qy, py, unit, box, region)
         for px in range(px0, px1 + 1):
-            mask = np.uint32(0)
-            for s in range(n_samples):
-                if _inside_all(qx, qy, adj, px * unit + offsets[s, 0], py * unit + offsets[s, 1]):
-                    mask |= np.uint32(1) << np.uint32(s)
+            mask = _pixel_mask(planes, px, py, offsets, unit)
             if mask != 0:
                 if write:
                     out_x[start + count] = px
@@ -605,6 +586,94 @@ def _raster_quad(qx, qy, bottom_edge_rule, gl, offsets, unit, width, height,
                     out_mask[start + count] = mask
                 count += 1
     return count
+
+
+@numba.njit(cache=True, inline="always")
+def _quad_planes(qx, qy, bottom_edge_rule):
+    """The quad's four edges as `Plane`s: edge i from corner i to corner i + 1
+    (mod 4), dcdx = qy[i] - qy[i + 1], dcdy = qx[i] - qx[i + 1]; E == 0 is
+    inside on left edges (dcdx < 0) and, by the fill convention, on
+    horizontal edges with dcdy > 0 (bottom_edge_rule 0) or < 0."""
+    return (_quad_plane(qx, qy, 0, bottom_edge_rule), _quad_plane(qx, qy, 1, bottom_edge_rule),
+            _quad_plane(qx, qy, 2, bottom_edge_rule), _quad_plane(qx, qy, 3, bottom_edge_rule))
+
+
+@numba.njit(cache=True, inline="always")
+def _quad_plane(qx, qy, i, bottom_edge_rule):
+    j = (i + 1) & 3
+    dcdx = qy[i] - qy[j]
+    dcdy = qx[i] - qx[j]
+    adj = dcdx < 0.0 or (dcdx == 0.0 and ((dcdy > 0.0) if bottom_edge_rule == 0 else (dcdy < 0.0)))
+    return Plane(dcdx, dcdy, qx[i], qy[i], adj)
+
+
+@numba.njit(cache=True, inline="always")
+def _offset_box(offsets):
+    """The extreme sample offsets (S, 2) of a pixel: (min x, max x, min y, max y)."""
+    return offsets[:, 0].min(), offsets[:, 0].max(), offsets[:, 1].min(), offsets[:, 1].max()
+
+
+# The candidate search's margin, in pixels, for the rounding of its bounds:
+# they are quotients of raster positions below 2^24 units with relative
+# errors ~1e-16, so off by less than 1e-9 pixel, and no pixel that holds a
+# covered sample is missed (tests/stages/test_lines.py tests every sample of
+# the binned region).
+_MARGIN = 1e-6
+
+
+@numba.njit(cache=True, inline="always")
+def _quad_rows(qy, unit, box, region):
+    """The candidate pixel rows (py0, py1) of a quad: those whose sample band
+    (box: `_offset_box`) can meet its y extent, ceil((ymin - max oy) / unit)
+    .. floor((ymax - min oy) / unit), widened by _MARGIN, within region (x0,
+    x1, y0, y1)."""
+    ymin = min(min(qy[0], qy[1]), min(qy[2], qy[3]))
+    ymax = max(max(qy[0], qy[1]), max(qy[2], qy[3]))
+    return (max(int(math.ceil((ymin - box[3]) / unit - _MARGIN)), region[2]),
+            min(int(math.floor((ymax - box[2]) / unit + _MARGIN)), region[3]))
+
+
+@numba.njit(cache=True, inline="always")
+def _row_span(qx, qy, py, unit, box, region):
+    """The candidate pixel columns (px0, px1) of row py (px0 > px1: none):
+    the quad's x extent within the row's sample band (its corners inside
+    the band and its edges' crossings of the band's borders: the quad is a
+    parallelogram, convex, so nothing of it in the band lies beyond these),
+    widened by the sample offsets (box: `_offset_box`) and _MARGIN, within
+    region.  One band border for
+    one row of samples (the same y: lo_y == hi_y)."""
+    lo_y = py * unit + box[2]
+    hi_y = py * unit + box[3]
+    lo = np.inf
+    hi = -np.inf
+    for i in range(4):
+        j = (i + 1) & 3
+        if lo_y <= qy[i] <= hi_y:
+            lo = min(lo, qx[i])
+            hi = max(hi, qx[i])
+        for k in range(2 if hi_y != lo_y else 1):
+            b = hi_y if k else lo_y
+            da = qy[i] - b
+            db = qy[j] - b
+            if (da < 0.0 and db > 0.0) or (da > 0.0 and db < 0.0):
+                xb = qx[i] + (b - qy[i]) * (qx[j] - qx[i]) / (qy[j] - qy[i])
+                lo = min(lo, xb)
+                hi = max(hi, xb)
+    if lo > hi:
+        return 0, -1
+    return (max(int(math.ceil((lo - box[1]) / unit - _MARGIN)), region[0]),
+            min(int(math.floor((hi - box[0]) / unit + _MARGIN)), region[1]))
+
+
+@numba.njit(cache=True, inline="always")
+def _pixel_mask(planes, px, py, offsets, unit):
+    """The coverage mask (uint32) of pixel (px, py): bit s set where sample s
+    is inside all four `Plane`s (`_inside_all`)."""
+    mask = np.uint32(0)
+    for s in range(offsets.shape[0]):
+        if _inside_all(planes, px * unit + offsets[s, 0], py * unit + offsets[s, 1]):
+            mask |= np.uint32(1) << np.uint32(s)
+    return mask
 
 
 @numba.njit(cache=True)
