@@ -21,6 +21,7 @@ from softras.kernels import draw as fastpath
 from softras.kernels import interpolate as k_interpolate
 from softras.kernels import lanes as k_lanes
 from softras.kernels import light as k_light
+from softras.kernels import lines as k_lines
 from softras.kernels import ops as k_ops
 from softras.kernels import rasterize as k_rasterize
 from softras.kernels import rgba8 as k_rgba8
@@ -155,6 +156,26 @@ def test_random_line_scenes_are_bit_identical(seed, samples):
     scene = softras.load_scene(random_line_scene(seed))
     assert any(d.mesh.primitive == "lines" for d in scene.draws)
     assert_same(*both_paths(scene, samples=samples), f"random line scene seed {seed}, {samples} samples")
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+def test_lines_across_row_bands_are_bit_identical(samples):
+    """The line kernel covers by bands of `k_lines.BAND` rows in parallel:
+    long lines crossing several bands (and the frustum), blended "over" and
+    depth-tested in a draw, so each pixel must see the lines in draw order,
+    give the stages' bytes."""
+    rng = np.random.default_rng(77)
+    n = 400
+    xyz = rng.uniform([-2.5, -2.0, -2.5], [2.5, 2.0, 2.4], size=(2 * n, 3))
+    nodes = [{"name": f"wire{k}", "blend": "over", "depth_test": ["less", "always"][k],
+              "mesh": {"primitive": "lines", "positions": xyz.tolist(),
+                       "indices": np.arange(2 * n).reshape(n, 2).tolist(),
+                       "colors": rng.uniform(0, 1, size=(2 * n, 4)).round(3).tolist()}} for k in range(2)]
+    scene = softras.load_scene({"softras_scene": 1, "width": 150, "height": 5 * k_lines.BAND + 7,
+                                "background": [0, 0, 0, 1], "nodes": nodes,
+                                "camera": {"projection": "perspective", "fov_y": 70, "near": 0.5, "far": 4,
+                                           "eye": [0, 0, 2.5], "target": [0, 0, 0]}})
+    assert_same(*both_paths(scene, samples=samples), f"lines across bands, {samples} samples")
 
 
 @pytest.mark.parametrize("seed", range(12))

@@ -69,7 +69,7 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
     """Only the README demo scene is softras's own (``softras demo``); nothing
     else in softras/ looks for scenes or golden images beside its source.
     (The kernels read their own source files, for numba's cache key:
-    `softras.kernels.draw._sources_stamp`, and for the ready marks of
+    `softras.kernels.stamp.sources_stamp`, and for the ready marks of
     `softras.kernels.prepare`, which sit beside numba's cache in the
     kernels' __pycache__: no user folder.)"""
     found = []
@@ -79,11 +79,10 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
             if isinstance(node, ast.Name) and node.id == "__file__":
                 line = source.splitlines()[node.lineno - 1].strip()
                 found.append((str(path.relative_to(REPO)), line.split(" = ")[0]))
-    assert found == [("softras/cli.py", "_PACKAGE"), ("softras/kernels/draw.py",
-                     'for path in sorted(Path(__file__).resolve().parent.glob("*.py")):'),
-                     ("softras/kernels/prepare.py", 'return Path(__file__).resolve().parent / "__pycache__"'),
+    assert found == [("softras/cli.py", "_PACKAGE"), ("softras/kernels/prepare.py", 'return Path(__file__).resolve().parent / "__pycache__"'),
                      ("softras/kernels/prepare.py",
-                      'for path in sorted((Path(__file__).resolve().parents[1] / "pipeline").glob("*.py")):')], found
+                      'for path in sorted((Path(__file__).resolve().parents[1] / "pipeline").glob("*.py")):'),
+                     ("softras/kernels/stamp.py", "paths")], found
 
 
 @pytest.mark.gl

@@ -34,8 +34,9 @@ naming the readable function it must equal:
 The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes and depth as 24-bit integers (`softras.kernels.ops`).
 
-Line draws take `softras.kernels.lines` (the stages' clipping, set-up and
-coverage, then compiled per-fragment work into the same byte framebuffer).
+Line draws take `softras.kernels.lines` (clipping, set-up, coverage and the
+per-fragment work in one compiled kernel, with the line stage's functions,
+into the same byte framebuffer).
 `unsupported(scene, ...)` says why a scene must take the general path (lit
 or textured lines, normal and bump maps, other precisions or clipping
 policies...).  Every shading model is drawn here, at any sample count and
@@ -58,10 +59,8 @@ per-draw constants outside of the per-pixel work).
 
 from __future__ import annotations
 
-import hashlib
 import os
 from collections import namedtuple
-from pathlib import Path
 
 # numba's default OpenMP threading layer leaves its threads spinning after a
 # parallel region; on a loaded 2-core machine they steal the core that
@@ -85,6 +84,7 @@ from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _ed
                                        _list_whole_block, _sample_box, _tile_box)
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
+from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
                                      _lanes_bilinear_fixed, _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
@@ -249,23 +249,6 @@ def scratch_nbytes() -> int:
 # See `softras.kernels.lanes` for the lanes the tile kernel lists and shades.
 
 
-def _sources_stamp() -> str:
-    """SHA-256 of the sources of softras.kernels (every module of this folder).
-
-    numba's on-disk cache checks the source file of the function it compiled
-    and nothing else, but the tile driver inlines kernels of every module
-    here: an edit of texture.py alone would load a stale driver.  The stamp is
-    a closure variable of the driver, and numba keys a closure's cache on its
-    variables, so any edit of the kernels compiles the drivers again.  (The
-    kernels of softras.pipeline they inline, unorm8, blend_byte, wrap_index,
-    are not covered: scripts/mutate.py's comment on numba's cache.)"""
-    digest = hashlib.sha256()
-    for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
-        if path.name != "prepare.py":           # (no compiled code: it only runs the drivers)
-            digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()
-
-
 # The tile drivers' sample counts (`driver_samples`): GL's 1 and 4, unrolled
 # (4 draws the 24k grid 14-16 % faster so, docs/speed.md), and ANY_SAMPLES,
 # any other count of a pass, read at run time.
@@ -285,8 +268,8 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     or not, as constants (closure variables are compile-time constants to
     numba, and part of its cache key): the compiler unrolls the per-sample
     loops of 1 and 4 and drops the texture code from untextured draws, and a
-    scene compiles only the variants it uses.  sources : `_sources_stamp`, in
-    the cache key only."""
+    scene compiles only the variants it uses.  sources : `softras.kernels.stamp.sources_stamp`,
+    in the cache key only."""
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, lights, lighting, n_threads):
@@ -302,7 +285,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
         so a scene covering only part of the picture still keeps every thread busy).
         """
-        stamp = sources                 # noqa: F841  (a closure variable: the cache key, see above)
+        stamp = sources                 # noqa: F841  (a closure variable: the cache key, `softras.kernels.stamp`)
         n_tiles = bins[0].shape[0] - 1
         count = n_samples if n_samples != ANY_SAMPLES else samples[0].shape[0]
         for r in numba.prange(n_threads):
@@ -593,6 +576,6 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
 
 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`).
-_SOURCES = _sources_stamp()
+_SOURCES = sources_stamp()
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
                for n_samples in DRIVER_SAMPLES for textured in (False, True)}

@@ -1,106 +1,238 @@
-"""Lines on the compiled path: the per-fragment work of a GL_LINES draw.
+"""Lines on the compiled path: a GL_LINES draw in one compiled loop.
 
-Mirrors what `softras.pipeline.render._render_pass` does with a line draw's
-fragments in gl precision, operation for operation:
-`softras.pipeline.lines.depth_at_samples` (depth at each sample, linear in
-the line's t) and `softras.pipeline.ops.quantize_depth`,
-`softras.pipeline.lines.interpolate_lines` (the colour, perspective-correct
-in t) and `softras.pipeline.fragment.shade_unlit` as
-`softras.pipeline.ops.unorm8` converts it, then
-`softras.pipeline.ops.apply_fragments`' depth test, blend and write into the
-compiled path's byte framebuffer (`softras.kernels.ops`).  Clipping, set-up
-and coverage are the stages' own (`softras.pipeline.lines.rasterized_lines`,
-compiled there already): a line's fragments are few (about one per pixel of
-its length), so their list is kept, and what this module saves is the
-stages' float framebuffer and their per-fragment numpy arrays.
+Mirrors what `softras.pipeline.render._render_pass` does with a line draw
+in gl precision, operation for operation, line by line and without a
+fragment list:
 
-The fragments are applied one by one in the stages' order (line order,
-rows within a line), so blending and equal depths resolve as there.
+1. clip: `softras.pipeline.lines.clip_lines` (Mesa's do_clip_line in
+   float32; the same `_plane_distances` and `_clip_line`);
+2. viewport: `softras.pipeline.setup.viewport_transform`, fused for the
+   shader's vertices and unfused for the clipper's
+   (`softras.kernels.setup._window_corner`);
+3. set-up: `softras.pipeline.lines.line_quads` (llvmpipe's
+   try_setup_line, the same `_setup_line`);
+4. coverage: `softras.pipeline.lines.rasterize_lines` (its
+   `_raster_quad`'s rows and columns, `_binned_region`, `_row_span`,
+   `_pixel_mask`), each covered pixel at once shaded and applied:
+5. `softras.pipeline.lines.depth_at_samples` (depth at each sample, linear
+   in the line's t) and `softras.pipeline.ops.quantize_depth`,
+   `softras.pipeline.lines.interpolate_lines` (the colour, perspective-correct
+   in the `_line_t` of the pixel) and `softras.pipeline.fragment.shade_unlit`
+   as `softras.pipeline.ops.unorm8` converts it, then
+   `softras.pipeline.ops.apply_fragments`' depth test, blend and write into
+   the compiled path's byte framebuffer (`softras.kernels.ops`).
+
+Lines are drawn in order and a line's pixels row by row, the stages'
+fragment order, so blending and equal depths resolve as there.  One thread:
+a line covers about one pixel per pixel of its length, and the stages'
+parallel coverage in two passes (count, then write) cost more than the
+whole draw here (docs/speed.md, "Lines").
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numba
 import numpy as np
 
 from softras.kernels.interpolate import RGBA, _color_word
 from softras.kernels.ops import _depth_k, _depth_pass_k, _write_word
+from softras.kernels.scratch import _Scratch
+from softras.kernels.setup import _window_corner
+from softras.kernels.stamp import sources_stamp
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
+from softras.pipeline.clip import clip_planes
+from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _offset_box, _pixel_mask,
+                                    _plane_distances, _quad_planes, _quad_rows, _row_span, _setup_line)
 from softras.pipeline.render import vertex_colors
+
+
+# A draw's lines after clipping and set-up, one row per input line
+# (`_set_up_lines`): whether it is drawn, its quad's corners qx, qy (L, 4)
+# in raster units, the pixels llvmpipe covers it over, region (L, 4) int64
+# (x0, x1, y0, y1; `softras.pipeline.lines._binned_region`), the clipped
+# end points' window x, y, z (L, 2, 3) float32 values and 1/w (L, 2), and
+# their straight colours ends (L, 2, 4).
+LineTable = namedtuple("LineTable", ["drawn", "qx", "qy", "region", "window", "inv_w", "ends"])
+
+# Rows of pixels per band: thread r covers bands r, r + n_threads, ...
+BAND = 64
 
 
 def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
     """One GL_LINES draw into the byte framebuffer `softras.kernels.ops.Framebuffer`
-    fb at the sample positions (S, 2) in [0, 1) (GL's: S > 1 draws
-    llvmpipe's rectangular lines, `softras.pipeline.lines`)."""
+    fb at the sample positions (S, 2) in [0, 1), S <= 32 (GL's: S > 1
+    draws llvmpipe's rectangular lines, `softras.pipeline.lines`)."""
     mesh = draw.mesh
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
     clip_pos = vertex.to_clip(mesh.positions, mvp, "gl")
-    frags, t, window, inv_w, ends = lines_stage.rasterized_lines(
-        clip_pos, mesh.indices, scene.width, scene.height, values=vertex_colors(mesh), precision="gl",
-        sample_positions=positions, policy="llvmpipe")
-    if len(frags) == 0:
-        return
+    with np.errstate(over="ignore"):                # (beyond float32: inf, as in the draw module)
+        c = np.ascontiguousarray(clip_pos.astype(np.float32))
     rectangular = len(positions) > 1
+    pixel_offset = 0.0 if rectangular else 0.5
+    offsets = np.ascontiguousarray(np.rint((positions - pixel_offset) * FIXED_ONE), np.float64)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
-    _apply_lines(frags.x, frags.y, frags.mask, frags.tri, t, np.ascontiguousarray(window), np.ascontiguousarray(inv_w),
-                 np.ascontiguousarray(ends), np.asarray(draw.material.color, np.float64), positions,
-                 lines_stage.attribute_shift("gl", rectangular), rectangular, fb.color32, fb.depth, depth_func,
-                 bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend])
+    n = len(mesh.indices)
+    table = LineTable(_scratch.take("drawn", (n,), np.bool_), _scratch.take("qx", (n, 4), np.float64),
+                      _scratch.take("qy", (n, 4), np.float64), _scratch.take("region", (n, 4), np.int64),
+                      _scratch.take("window", (n, 2, 3), np.float64), _scratch.take("inv_w", (n, 2), np.float64),
+                      _scratch.take("ends", (n, 2, 4), np.float64))
+    _DRAW_LINES(c, np.isfinite(clip_pos).all(axis=1), np.ascontiguousarray(mesh.indices, np.int64),
+                np.ascontiguousarray(clip_planes("llvmpipe", 1, 1), np.float32),
+                np.ascontiguousarray(vertex_colors(mesh), np.float64), np.asarray(draw.material.color, np.float64),
+                offsets, np.ascontiguousarray(positions, np.float64), rectangular,
+                lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.depth, depth_func,
+                bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend], *table,
+                numba.get_num_threads())
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _apply_lines(x, y, mask, line, t, window, inv_w, ends, material, positions, shift, rectangular, color32, depth,
-                 depth_func, write_z, blend):
-    """Depth-test, shade and write line fragments in order.
+_scratch = _Scratch()
 
-    x, y, mask, line : (F,) the fragments (`softras.pipeline.rasterize.Fragments`,
-    ``tri`` the clipped line); t : (F,) their attribute parameter; window
-    (L, 2, 3) float32 values, inv_w (L, 2), ends (L, 2, 4) straight colours:
-    per clipped line, its end points (`softras.pipeline.lines.rasterized_lines`);
-    material (4,) its colour; positions (S, 2); shift :
-    `softras.pipeline.lines.attribute_shift`; color32, depth : the byte
-    framebuffer (`softras.kernels.ops`); the draw's depth function, depth
-    write and blend codes."""
-    n_samples = positions.shape[0]
-    white = RGBA(1.0, 1.0, 1.0, 1.0)
-    for f in range(x.shape[0]):
-        i, px, py = line[f], x[f], y[f]
-        # depth_at_samples: t at each sample (the projection onto the line,
-        # or along the major axis in float32), not finite -> 0, z linear in t.
-        x0, y0, z0 = window[i, 0, 0], window[i, 0, 1], window[i, 0, 2]
-        dx, dy, dz = window[i, 1, 0] - x0, window[i, 1, 1] - y0, window[i, 1, 2] - z0
-        x_major = abs(np.float32(dx)) >= abs(np.float32(dy))
-        passed = 0
-        for s in range(n_samples):
-            if not (mask[f] >> s) & 1:
-                continue
-            sx = (px + positions[s, 0]) + shift
-            sy = (py + positions[s, 1]) + shift
-            if rectangular:
-                ts = ((sx - x0) * dx + (sy - y0) * dy) / (dx * dx + dy * dy)
-            elif x_major:
-                ts = (sx - x0) / dx
-            else:
-                ts = (sy - y0) / dy
-            k = _depth_k(z0 + (ts if math.isfinite(ts) else 0.0) * dz)
-            stored = depth[py, px, s]
-            if _depth_pass_k(depth_func, k, stored):
-                if write_z:
-                    depth[py, px, s] = k
-                passed |= 1 << s
-        if passed == 0:
+
+def _make_draw_lines(sources: str):
+    """The line kernel, compiled with ``sources`` (`softras.kernels.stamp`:
+    the kernels' and the line stage's sources, whose functions it inlines)
+    in its cache key."""
+
+    @numba.njit(cache=True, parallel=True, error_model="numpy")
+    def draw_lines_kernel(c, finite, indices, planes, values, material, offsets, positions, rectangular, shift,
+                          color32, depth, depth_func, write_z, blend, drawn, qx, qy, region, window, inv_w, ends,
+                          n_threads):
+        """Every line of a draw: clipped and set up in parallel (`_set_up_lines`,
+        thread r lines r, r + n_threads, ...), then covered, shaded and
+        written in parallel by bands of BAND rows (`_cover_lines`, thread
+        r bands r, r + n_threads, ...: a pixel is one thread's, and it sees
+        the lines in order).  Arguments as `_set_up_lines` and
+        `_cover_lines`; table: a `LineTable` as a plain tuple
+        (`softras.kernels.setup.Clipped`)."""
+        stamp = sources                 # noqa: F841  (a closure variable: the cache key)
+        dist = _plane_distances(c, planes)
+        n = indices.shape[0]
+        for r in numba.prange(n_threads):
+            _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, depth.shape[1],
+                          depth.shape[0], drawn, qx, qy, region, window, inv_w, ends)
+        for r in numba.prange(n_threads):
+            _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift, color32, depth,
+                         depth_func, write_z, blend, LineTable(drawn, qx, qy, region, window, inv_w, ends))
+
+    return draw_lines_kernel
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, width, height, drawn, qx, qy,
+                  region, window, inv_w, ends):
+    """`softras.pipeline.lines.rasterized_lines` up to the coverage, for the
+    input lines r, r + n_threads, ... into their `LineTable` rows: clipped
+    (`_clip_line`), the end points' window coordinates and 1/w
+    (`_window_corner`), set up (`_setup_line`) and binned
+    (`_binned_region`); drawn False for a line dropped on the way.
+
+    c (N, 4) float32 clip positions, dist (N, 6) their plane distances
+    (`softras.pipeline.lines._plane_distances`), finite (N,) whether their
+    float64 values are finite, indices (M, 2), values (N, 4) straight
+    vertex colours; rectangular: MSAA lines; the framebuffer's size; the
+    `LineTable`'s arrays one by one (numba's parallel loop dropped this
+    loop as dead when they came as a record built in it)."""
+    end_clip = np.empty((1, 2, 4))
+    weights = np.empty((1, 2, 2))
+    generated = np.empty((1, 2), np.bool_)
+    pixel_offset = 0.0 if rectangular else 0.5
+    for line in range(r, indices.shape[0], n_threads):
+        drawn[line] = False
+        i0, i1 = indices[line, 0], indices[line, 1]
+        if not (finite[i0] and finite[i1]
+                and _clip_line(c, dist, i0, i1, np.float32(0), end_clip, weights, generated, 0)):
             continue
-        # interpolate_lines, then shade_unlit's (vertex x material), premultiplied, as bytes.
-        q0 = (1.0 - t[f]) * inv_w[i, 0]
-        q1 = t[f] * inv_w[i, 1]
-        total = q0 + q1
-        b0, b1 = q0 / total, q1 / total
-        word = _color_word((b0 * ends[i, 0, 0] + b1 * ends[i, 1, 0]) * material[0],
-                           (b0 * ends[i, 0, 1] + b1 * ends[i, 1, 1]) * material[1],
-                           (b0 * ends[i, 0, 2] + b1 * ends[i, 1, 2]) * material[2],
-                           (b0 * ends[i, 0, 3] + b1 * ends[i, 1, 3]) * material[3], white)
-        _write_word(color32, py, px, passed, n_samples, blend, word)
+        for e in range(2):
+            (window[line, e, 0], window[line, e, 1], window[line, e, 2], inv_w[line, e],
+             _, _) = _window_corner(end_clip[0, e, 0], end_clip[0, e, 1], end_clip[0, e, 2], end_clip[0, e, 3],
+                                    not generated[0, e], width, height)
+            for k in range(4):
+                ends[line, e, k] = weights[0, e, 0] * values[i0, k] + weights[0, e, 1] * values[i1, k]
+        drawn[line] = (_setup_line(window[line, 0, 0], window[line, 0, 1], window[line, 1, 0], window[line, 1, 1],
+                                   rectangular, pixel_offset, True, qx[line], qy[line])
+                       and _binned_region(qx[line], qy[line], 0, rectangular, width, height, region[line]))
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift, color32, depth, depth_func,
+                 write_z, blend, table):
+    """The set-up lines of the `LineTable` in order, in the bands of rows
+    r, r + n_threads, ... (BAND rows each): covered (`_raster_quad`'s rows
+    and columns), and each covered pixel shaded and applied at once.
+
+    material (4,) the material colour; offsets (S, 2) the samples in raster
+    units and positions (S, 2) within the pixel
+    (`softras.pipeline.lines.rasterize_lines`); rectangular: MSAA lines;
+    shift: `softras.pipeline.lines.attribute_shift`; color32, depth: the
+    byte framebuffer (`softras.kernels.ops`); the draw's depth function,
+    depth write and blend codes."""
+    n_samples = depth.shape[2]
+    unit = np.float64(FIXED_ONE)
+    centre = 0.5 + shift
+    box = _offset_box(offsets)
+    white = RGBA(1.0, 1.0, 1.0, 1.0)
+    for line in range(table.drawn.shape[0]):
+        if not table.drawn[line]:
+            continue
+        # (The line's rows as tuples: an array view per line costs reference counts.)
+        qx = (table.qx[line, 0], table.qx[line, 1], table.qx[line, 2], table.qx[line, 3])
+        qy = (table.qy[line, 0], table.qy[line, 1], table.qy[line, 2], table.qy[line, 3])
+        region = (table.region[line, 0], table.region[line, 1], table.region[line, 2], table.region[line, 3])
+        ends = table.ends
+        x0, y0, z0 = table.window[line, 0, 0], table.window[line, 0, 1], table.window[line, 0, 2]
+        x1, y1, z1 = table.window[line, 1, 0], table.window[line, 1, 1], table.window[line, 1, 2]
+        inv_w0, inv_w1 = table.inv_w[line, 0], table.inv_w[line, 1]
+        planes = _quad_planes(qx, qy, 0)
+        dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+        x_major = abs(np.float32(dx)) >= abs(np.float32(dy))
+        py0, py1 = _quad_rows(qy, unit, box, region)
+        for py in range(py0, py1 + 1):
+            if (py // BAND) % n_threads != r:
+                continue
+            px0, px1 = _row_span(qx, qy, py, unit, box, region)
+            for px in range(px0, px1 + 1):
+                mask = _pixel_mask(planes, px, py, offsets, unit)
+                if mask == 0:
+                    continue
+                # depth_at_samples: t at each sample (the projection onto the
+                # line, or along the major axis in float32), not finite -> 0,
+                # z linear in t; the depth test and write.
+                passed = 0
+                for s in range(n_samples):
+                    if not (mask >> s) & 1:
+                        continue
+                    sx = (px + positions[s, 0]) + shift
+                    sy = (py + positions[s, 1]) + shift
+                    if rectangular:
+                        ts = ((sx - x0) * dx + (sy - y0) * dy) / (dx * dx + dy * dy)
+                    elif x_major:
+                        ts = (sx - x0) / dx
+                    else:
+                        ts = (sy - y0) / dy
+                    k = _depth_k(z0 + (ts if math.isfinite(ts) else 0.0) * dz)
+                    stored = depth[py, px, s]
+                    if _depth_pass_k(depth_func, k, stored):
+                        if write_z:
+                            depth[py, px, s] = k
+                        passed |= 1 << s
+                if passed == 0:
+                    continue
+                # interpolate_lines at the pixel's t, then shade_unlit's
+                # (vertex x material), premultiplied, as bytes.
+                t = _line_t(x0, y0, x1, y1, px + centre, py + centre, rectangular, True)
+                q0 = (1.0 - t) * inv_w0
+                q1 = t * inv_w1
+                total = q0 + q1
+                b0, b1 = q0 / total, q1 / total
+                word = _color_word((b0 * ends[line, 0, 0] + b1 * ends[line, 1, 0]) * material[0],
+                                   (b0 * ends[line, 0, 1] + b1 * ends[line, 1, 1]) * material[1],
+                                   (b0 * ends[line, 0, 2] + b1 * ends[line, 1, 2]) * material[2],
+                                   (b0 * ends[line, 0, 3] + b1 * ends[line, 1, 3]) * material[3], white)
+                _write_word(color32, py, px, passed, n_samples, blend, word)
+
+
+_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops))

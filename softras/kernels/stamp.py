@@ -1,0 +1,28 @@
+"""A cache key for compiled code that inlines other modules' kernels.
+
+numba's on-disk cache checks the source file of the function it compiled
+and nothing else, but the tile drivers (`softras.kernels.draw`) and the
+line kernel (`softras.kernels.lines`) inline kernels of every module of
+this folder, and the line kernel the line stage's own
+(`softras.pipeline.lines`): an edit of one of those alone would load a stale
+kernel.  The stamp is a closure variable of the kernel, and numba keys a
+closure's cache on its variables, so any edit of a module it covers
+compiles the kernel again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+
+def sources_stamp(*stage_modules) -> str:
+    """SHA-256 of the sources of softras.kernels (every module of this
+    folder but prepare.py, which holds no compiled code) and of the
+    ``stage_modules`` (modules of softras.pipeline whose kernels are
+    inlined too)."""
+    digest = hashlib.sha256()
+    paths = [path for path in sorted(Path(__file__).resolve().parent.glob("*.py")) if path.name != "prepare.py"]
+    for path in paths + [Path(module.__file__) for module in stage_modules]:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
