@@ -226,6 +226,19 @@ class Job:
                    texture_bounds=texture_bounds, tie_rule=tie_rule)
 
 
+# Fragments a draw shades at once (`fragment_chunks`).
+FRAGMENT_CHUNK = 1 << 18
+
+
+def fragment_chunks(frags: rasterize.Fragments, size: int | None = None):
+    """A draw's fragments (`softras.pipeline.rasterize.Fragments`) as
+    consecutive slices of at most ``size`` (default FRAGMENT_CHUNK), in order."""
+    size = size or FRAGMENT_CHUNK
+    for start in range(0, len(frags), size):
+        stop = start + size
+        yield rasterize.Fragments(frags.tri[start:stop], frags.x[start:stop], frags.y[start:stop], frags.mask[start:stop])
+
+
 def check_sample_memory(scene: Scene, n_samples: int, bytes_per_sample: int) -> None:
     """Refuse (ValueError, one line) a render whose per-sample buffers,
     ``bytes_per_sample`` for each of the picture's samples, would exceed
@@ -359,42 +372,50 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
         if shading in ("flat", "phong"):                       # (Gouraud is lit already)
             world = vertex.world_positions(mesh.positions, draw.world)
             eye = vertex.eye_position(scene.camera.view)
-
-        t = frags.tri
-        centres = np.stack([frags.x + 0.5, frags.y + 0.5], axis=1)
-        lam = interpolate.barycentric(tris.window[t, :, :2], centres)
-        persp = interpolate.perspective_weights(lam, tris.inv_w[t])
-        z = interpolate.depth_at_samples(tris.window[t], frags.x, frags.y, positions)
-        if gl:
-            z = ops.quantize_depth(z)
         if shading == "flat":
-            colors = flat_colors(world, source, base, eye, scene.lights, material)[0][t]
-        elif shading == "phong":
-            colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
-            if material.normal_map is not None or material.bump_map is not None:
-                normal = mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
-                                         precision, texture_fixed_point, texture_bounds)
-            lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
-            colors = np.concatenate([lit, colors[:, 3:]], axis=1)
-        else:
-            colors = interpolate.interpolate(persp, corners(base)[t])
-        texel = None
-        if material.texture is not None:
-            tex = texture.prepare(scene.textures[material.texture])
-            corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, frags, centres, gl)
-            if texture_bounds is None:
-                texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
-                                                      texture_filter)
-            else:       # every derivative GL permits: quad differences and analytic
-                candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y,
-                                                            centres, corner_uv)
-                texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
-        rgba = fragment.shade_unlit(colors, np.ones(4), texel)
-        x, y, mask = frags.x, frags.y, frags.mask
-        if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
-            passed = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
-            x, y, mask, z, rgba = x[passed], y[passed], mask[passed], z[passed], rgba[passed]
-        ops.apply_fragments(x, y, mask, z, rgba, color, depth,
-                            ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
-                            ops.BLEND_MODES[draw.blend], quantize)
+            face_colors = flat_colors(world, source, base, eye, scene.lights, material)[0]
+        tex = texture.prepare(scene.textures[material.texture]) if material.texture is not None else None
+
+        # The fragments in chunks, in order: each fragment's work reads only
+        # its own triangle and position (texture derivatives included), so
+        # the picture is the same, and the per-fragment arrays (~300 bytes
+        # a fragment in exact precision) are bounded by the chunk, not by
+        # the draw.
+        for chunk in fragment_chunks(frags):
+            t = chunk.tri
+            centres = np.stack([chunk.x + 0.5, chunk.y + 0.5], axis=1)
+            lam = interpolate.barycentric(tris.window[t, :, :2], centres)
+            persp = interpolate.perspective_weights(lam, tris.inv_w[t])
+            z = interpolate.depth_at_samples(tris.window[t], chunk.x, chunk.y, positions)
+            if gl:
+                z = ops.quantize_depth(z)
+            if shading == "flat":
+                colors = face_colors[t]
+            elif shading == "phong":
+                colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
+                if material.normal_map is not None or material.bump_map is not None:
+                    normal = mapped_normals(scene, draw, persp, corners, tris, t, chunk, centres, normal,
+                                            precision, texture_fixed_point, texture_bounds)
+                lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
+                colors = np.concatenate([lit, colors[:, 3:]], axis=1)
+            else:
+                colors = interpolate.interpolate(persp, corners(base)[t])
+            texel = None
+            if tex is not None:
+                corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, chunk, centres, gl)
+                if texture_bounds is None:
+                    texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
+                                                          texture_filter)
+                else:       # every derivative GL permits: quad differences and analytic
+                    candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], chunk.x, chunk.y,
+                                                                centres, corner_uv)
+                    texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
+            rgba = fragment.shade_unlit(colors, np.ones(4), texel)
+            x, y, mask = chunk.x, chunk.y, chunk.mask
+            if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
+                passed = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
+                x, y, mask, z, rgba = x[passed], y[passed], mask[passed], z[passed], rgba[passed]
+            ops.apply_fragments(x, y, mask, z, rgba, color, depth,
+                                ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
+                                ops.BLEND_MODES[draw.blend], quantize)
     return color
