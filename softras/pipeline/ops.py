@@ -298,6 +298,10 @@ def _resolve_bytes(stored, out):
                 out[height - 1 - y, x, c] = np.uint8(np.rint(value))
 
 
+# Rows a box resolve converts at once (`resolve`).
+RESOLVE_ROWS = 256
+
+
 def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: str = "box",
             arithmetic: str = "exact", output: str = "uint8") -> np.ndarray:
     """Filter the samples to one colour per pixel and convert to the output image.
@@ -327,15 +331,18 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
         raise ValueError(f"resolve: output must be 'uint8' or 'float32', not {output!r}")
     if arithmetic == "llvmpipe" and filter == "box" and output == "uint8":
         return resolve_llvmpipe_bytes(unorm8_bytes(color))
+    convert = (lambda m: m.astype(np.float32)) if output == "float32" else unorm8_bytes
     if filter == "box":
-        mean = color.mean(axis=2, dtype=np.float64)
+        # By bands of rows (the mean over the sample axis of a band is the
+        # band of the mean): float64 buffers of a band, not of the picture.
+        out = np.empty(color.shape[:2] + (4,), np.float32 if output == "float32" else np.uint8)
+        for top in range(0, color.shape[0], RESOLVE_ROWS):
+            out[top:top + RESOLVE_ROWS] = convert(color[top:top + RESOLVE_ROWS].mean(axis=2, dtype=np.float64))
     else:
         if positions is None:
             raise ValueError("resolve: the tent filter needs the sample positions")
-        mean = _tent_filter(color, np.asarray(positions, np.float64))
-    if output == "float32":
-        return mean.astype(np.float32)[::-1].copy()
-    return unorm8_bytes(mean)[::-1].copy()
+        out = convert(_tent_filter(color, np.asarray(positions, np.float64)))
+    return out[::-1].copy()
 
 
 def _tent_filter(color: np.ndarray, positions: np.ndarray) -> np.ndarray:

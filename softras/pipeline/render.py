@@ -8,6 +8,7 @@ framebuffer.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -226,8 +227,29 @@ class Job:
                    texture_bounds=texture_bounds, tie_rule=tie_rule)
 
 
-# Fragments a draw shades at once (`fragment_chunks`).
+# Pixel samples a band of rows holds at most when a draw is rasterized in
+# bands (`row_bands`), and fragments a draw shades at once (`fragment_chunks`).
+BAND_SAMPLES = 1 << 21
 FRAGMENT_CHUNK = 1 << 18
+
+
+def row_bands(bbox: np.ndarray, width: int, n_samples: int, limit: int | None = None):
+    """A draw's set-up triangles' pixel boxes bbox (T', 4) (x0, x1, y0, y1,
+    `softras.pipeline.setup.TriangleSetup`) as those of consecutive bands of
+    rows, each box cut to the band's rows (empty, y0 > y1, outside it): bands
+    of ``limit`` (default BAND_SAMPLES) pixel samples of the picture's width,
+    or the boxes as they are when all of them hold fewer samples together."""
+    limit = limit or BAND_SAMPLES
+    pixels = np.maximum(bbox[:, 1] - bbox[:, 0] + 1, 0) * np.maximum(bbox[:, 3] - bbox[:, 2] + 1, 0)
+    if len(bbox) == 0 or int(pixels.sum()) * n_samples <= limit:
+        yield bbox
+        return
+    rows = max(1, limit // (width * n_samples))
+    for top in range(int(bbox[:, 2].min()), int(bbox[:, 3].max()) + 1, rows):
+        band = bbox.copy()
+        band[:, 2] = np.maximum(bbox[:, 2], top)
+        band[:, 3] = np.minimum(bbox[:, 3], top + rows - 1)
+        yield band
 
 
 def fragment_chunks(frags: rasterize.Fragments, size: int | None = None):
@@ -361,8 +383,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
                                      cull=draw.cull, offsets=offsets, unit=unit,
                                      generated=clipped.generated, tie_rule=tie_rule,
                                      front_face=scene.front_face)
-        frags = rasterize.rasterize(tris, offsets, unit)
-        if len(frags) == 0:
+        if len(tris) == 0:
             continue
 
         source, corners = corner_values(clipped, tris, mesh)
@@ -376,46 +397,51 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
             face_colors = flat_colors(world, source, base, eye, scene.lights, material)[0]
         tex = texture.prepare(scene.textures[material.texture]) if material.texture is not None else None
 
-        # The fragments in chunks, in order: each fragment's work reads only
-        # its own triangle and position (texture derivatives included), so
-        # the picture is the same, and the per-fragment arrays (~300 bytes
-        # a fragment in exact precision) are bounded by the chunk, not by
-        # the draw.
-        for chunk in fragment_chunks(frags):
-            t = chunk.tri
-            centres = np.stack([chunk.x + 0.5, chunk.y + 0.5], axis=1)
-            lam = interpolate.barycentric(tris.window[t, :, :2], centres)
-            persp = interpolate.perspective_weights(lam, tris.inv_w[t])
-            z = interpolate.depth_at_samples(tris.window[t], chunk.x, chunk.y, positions)
-            if gl:
-                z = ops.quantize_depth(z)
-            if shading == "flat":
-                colors = face_colors[t]
-            elif shading == "phong":
-                colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
-                if material.normal_map is not None or material.bump_map is not None:
-                    normal = mapped_normals(scene, draw, persp, corners, tris, t, chunk, centres, normal,
-                                            precision, texture_fixed_point, texture_bounds)
-                lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
-                colors = np.concatenate([lit, colors[:, 3:]], axis=1)
-            else:
-                colors = interpolate.interpolate(persp, corners(base)[t])
-            texel = None
-            if tex is not None:
-                corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, chunk, centres, gl)
-                if texture_bounds is None:
-                    texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
-                                                          texture_filter)
-                else:       # every derivative GL permits: quad differences and analytic
-                    candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], chunk.x, chunk.y,
-                                                                centres, corner_uv)
-                    texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
-            rgba = fragment.shade_unlit(colors, np.ones(4), texel)
-            x, y, mask = chunk.x, chunk.y, chunk.mask
-            if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
-                passed = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
-                x, y, mask, z, rgba = x[passed], y[passed], mask[passed], z[passed], rgba[passed]
-            ops.apply_fragments(x, y, mask, z, rgba, color, depth,
-                                ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
-                                ops.BLEND_MODES[draw.blend], quantize)
+        # The draw rasterized by bands of rows and its fragments shaded in
+        # chunks, in order: a pixel sees the triangles in draw order within
+        # its band, and each fragment's work reads only its own triangle and
+        # position (texture derivatives included), so the picture is the
+        # same, and the fragment list (20 bytes a fragment) and the
+        # per-fragment arrays (~300 bytes in exact precision) are bounded by
+        # the band and the chunk, not by the draw.
+        for bbox in row_bands(tris.bbox, width, len(positions)):
+            frags = rasterize.rasterize(dataclasses.replace(tris, bbox=bbox), offsets, unit)
+            for chunk in fragment_chunks(frags):
+                t = chunk.tri
+                centres = np.stack([chunk.x + 0.5, chunk.y + 0.5], axis=1)
+                lam = interpolate.barycentric(tris.window[t, :, :2], centres)
+                persp = interpolate.perspective_weights(lam, tris.inv_w[t])
+                z = interpolate.depth_at_samples(tris.window[t], chunk.x, chunk.y, positions)
+                if gl:
+                    z = ops.quantize_depth(z)
+                if shading == "flat":
+                    colors = face_colors[t]
+                elif shading == "phong":
+                    colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
+                    if material.normal_map is not None or material.bump_map is not None:
+                        normal = mapped_normals(scene, draw, persp, corners, tris, t, chunk, centres, normal,
+                                                precision, texture_fixed_point, texture_bounds)
+                    lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
+                    colors = np.concatenate([lit, colors[:, 3:]], axis=1)
+                else:
+                    colors = interpolate.interpolate(persp, corners(base)[t])
+                texel = None
+                if tex is not None:
+                    corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, chunk, centres,
+                                                              gl)
+                    if texture_bounds is None:
+                        texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
+                                                              texture_filter)
+                    else:       # every derivative GL permits: quad differences and analytic
+                        candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], chunk.x,
+                                                                    chunk.y, centres, corner_uv)
+                        texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
+                rgba = fragment.shade_unlit(colors, np.ones(4), texel)
+                x, y, mask = chunk.x, chunk.y, chunk.mask
+                if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
+                    passed = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
+                    x, y, mask, z, rgba = x[passed], y[passed], mask[passed], z[passed], rgba[passed]
+                ops.apply_fragments(x, y, mask, z, rgba, color, depth,
+                                    ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
+                                    ops.BLEND_MODES[draw.blend], quantize)
     return color
