@@ -22,11 +22,10 @@ fragment list:
    `softras.pipeline.ops.apply_fragments`' depth test, blend and write into
    the compiled path's byte framebuffer (`softras.kernels.ops`).
 
-Lines are drawn in order and a line's pixels row by row, the stages'
-fragment order, so blending and equal depths resolve as there.  One thread:
-a line covers about one pixel per pixel of its length, and the stages'
-parallel coverage in two passes (count, then write) cost more than the
-whole draw here (docs/speed.md, "Lines").
+Two parallel passes: the set-up by lines, then the coverage by bands of
+rows, where each thread walks all the lines in order over its own rows, so
+every pixel sees the lines in the stages' fragment order and blending and
+equal depths resolve as there (docs/speed.md, "Lines").
 """
 
 from __future__ import annotations
@@ -106,8 +105,8 @@ def _make_draw_lines(sources: str):
         written in parallel by bands of BAND rows (`_cover_lines`, thread
         r bands r, r + n_threads, ...: a pixel is one thread's, and it sees
         the lines in order).  Arguments as `_set_up_lines` and
-        `_cover_lines`; table: a `LineTable` as a plain tuple
-        (`softras.kernels.setup.Clipped`)."""
+        `_cover_lines`, the `LineTable`'s arrays one by one (drawn ...
+        ends)."""
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
         dist = _plane_distances(c, planes)
         n = indices.shape[0]
@@ -178,7 +177,7 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
     for line in range(table.drawn.shape[0]):
         if not table.drawn[line]:
             continue
-        # (The line's rows as tuples: an array view per line costs reference counts.)
+        # (The line's rows as tuples of scalars, for the stage's functions.)
         qx = (table.qx[line, 0], table.qx[line, 1], table.qx[line, 2], table.qx[line, 3])
         qy = (table.qy[line, 0], table.qy[line, 1], table.qy[line, 2], table.qy[line, 3])
         region = (table.region[line, 0], table.region[line, 1], table.region[line, 2], table.region[line, 3])

@@ -614,10 +614,11 @@ def _offset_box(offsets):
 
 
 # The candidate search's margin, in pixels, for the rounding of its bounds:
-# they are quotients of raster positions below 2^24 units with relative
-# errors ~1e-16, so off by less than 1e-9 pixel, and no pixel that holds a
-# covered sample is missed (tests/stages/test_lines.py tests every sample of
-# the binned region).
+# they are quotients with relative errors ~1e-16, off by less than 1e-6
+# pixel for positions below 2^40 raster units (clipped lines lie within the
+# view volume, or the guard band's 8192 pixels in exact precision), so no
+# pixel that holds a covered sample is missed (tests/stages/test_lines.py
+# tests every sample of the binned region).
 _MARGIN = 1e-6
 
 
