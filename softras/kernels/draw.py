@@ -575,7 +575,10 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     _write_lanes(kept, li, color32, state.blend, n_samples)
 
 
-# One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`).
-_SOURCES = sources_stamp()
+# One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`),
+# keyed on the kernels' sources and those of the stages' kernels they inline
+# (`unorm8` and `blend_byte` of softras.pipeline.ops, `wrap_index` and
+# `ewa_texel` of softras.pipeline.texture).
+_SOURCES = sources_stamp(ops, texture)
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
                for n_samples in DRIVER_SAMPLES for textured in (False, True)}

@@ -3,8 +3,9 @@
 numba's on-disk cache checks the source file of the function it compiled
 and nothing else, but the tile drivers (`softras.kernels.draw`) and the
 line kernel (`softras.kernels.lines`) inline kernels of every module of
-this folder, and the line kernel the line stage's own
-(`softras.pipeline.lines`): an edit of one of those alone would load a stale
+this folder and some of the stages' (`softras.pipeline.ops`,
+`softras.pipeline.texture`, and for the line kernel
+`softras.pipeline.lines`): an edit of one of those alone would load a stale
 kernel.  The stamp is a closure variable of the kernel, and numba keys a
 closure's cache on its variables, so any edit of a module it covers
 compiles the kernel again.
