@@ -452,9 +452,11 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                 _lane_depths(n, t, tris.f, samples.positions, li, count)   # (vectorised)
             # The level of detail of every quad (before the depth test), kept on the
             # quad's first lane; whether a quad samples two levels.
-            any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
             if sampler.aniso:                             # (one level each, never vectorised)
                 _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
+                any_two = False
+            else:
+                any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
             # Depth test (scalar); a quad without a passed sample samples level 0 alone.
             block_passed = 0
             block_two = False                             # a passed quad samples two levels

@@ -43,7 +43,6 @@ from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
-from softras.pipeline.clip import clip_planes
 from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _offset_box, _pixel_mask,
                                     _plane_distances, _quad_planes, _quad_rows, _row_span, _setup_line)
 from softras.pipeline.render import vertex_colors
@@ -68,20 +67,16 @@ def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
     mesh = draw.mesh
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
     clip_pos = vertex.to_clip(mesh.positions, mvp, "gl")
-    with np.errstate(over="ignore"):                # (beyond float32: inf, as in the draw module)
-        c = np.ascontiguousarray(clip_pos.astype(np.float32))
+    c, finite, planes = lines_stage.clip_inputs(clip_pos, "gl", "llvmpipe", scene.width, scene.height)
     rectangular = len(positions) > 1
-    pixel_offset = 0.0 if rectangular else 0.5
-    offsets = np.ascontiguousarray(np.rint((positions - pixel_offset) * FIXED_ONE), np.float64)
+    offsets = lines_stage.sample_offsets(positions, rectangular, True)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     n = len(mesh.indices)
     table = LineTable(_scratch.take("drawn", (n,), np.bool_), _scratch.take("qx", (n, 4), np.float64),
                       _scratch.take("qy", (n, 4), np.float64), _scratch.take("region", (n, 4), np.int64),
                       _scratch.take("window", (n, 2, 3), np.float64), _scratch.take("inv_w", (n, 2), np.float64),
                       _scratch.take("ends", (n, 2, 4), np.float64))
-    _DRAW_LINES(c, np.isfinite(clip_pos).all(axis=1), np.ascontiguousarray(mesh.indices, np.int64),
-                np.ascontiguousarray(clip_planes("llvmpipe", 1, 1), np.float32),
-                np.ascontiguousarray(vertex_colors(mesh), np.float64), np.asarray(draw.material.color, np.float64),
+    _DRAW_LINES(c, finite, np.ascontiguousarray(mesh.indices, np.int64), planes, np.ascontiguousarray(vertex_colors(mesh), np.float64), np.asarray(draw.material.color, np.float64),
                 offsets, np.ascontiguousarray(positions, np.float64), rectangular,
                 lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.depth, depth_func,
                 bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend], *table,
@@ -109,7 +104,6 @@ def _make_draw_lines(sources: str):
         ends)."""
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
         dist = _plane_distances(c, planes)
-        n = indices.shape[0]
         for r in numba.prange(n_threads):
             _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, depth.shape[1],
                           depth.shape[0], drawn, qx, qy, region, window, inv_w, ends)

@@ -179,17 +179,27 @@ def clip_lines(clip: np.ndarray, indices: np.ndarray, *, precision: str = "gl",
     precision all of this is float32, as in the draw module.  Lines with a
     non-finite end point are dropped.  Order is preserved (draw order).
     """
-    clip = np.asarray(clip, np.float64)
     indices = np.ascontiguousarray(np.asarray(indices, np.int64).reshape(-1, 2))
+    c, finite, planes = clip_inputs(clip, precision, policy, width, height)
+    n = len(indices)
+    out = ClippedLines(np.empty((n, 2, 4)), np.empty(n, np.int64), np.empty((n, 2, 2)), np.empty((n, 2), bool))
+    count = _clip_all(c, finite, indices, planes, c.dtype.type(0), out.clip, out.weights, out.generated,
+                      out.source)
+    return ClippedLines(out.clip[:count], out.source[:count], out.weights[:count], out.generated[:count])
+
+
+def clip_inputs(clip: np.ndarray, precision: str, policy: str, width: int,
+                height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the line clipper (`_clip_line`) reads: the clip positions c (N, 4)
+    in the draw module's type (float32 in gl precision, inf beyond its
+    range; float64 in exact), whether the float64 positions are finite
+    (N,), and the policy's planes (6, 4) in c's type."""
+    clip = np.asarray(clip, np.float64)
     ftype = np.float32 if precision == "gl" else np.float64
     with np.errstate(over="ignore"):            # (beyond float32: inf, as in the draw module)
         c = np.ascontiguousarray(clip.astype(ftype))
     planes = np.ascontiguousarray(clip_planes(policy, width, height).astype(ftype))
-    finite = np.isfinite(clip).all(axis=1)
-    n = len(indices)
-    out = ClippedLines(np.empty((n, 2, 4)), np.empty(n, np.int64), np.empty((n, 2, 2)), np.empty((n, 2), bool))
-    count = _clip_all(c, finite, indices, planes, ftype(0), out.clip, out.weights, out.generated, out.source)
-    return ClippedLines(out.clip[:count], out.source[:count], out.weights[:count], out.generated[:count])
+    return c, np.isfinite(clip).all(axis=1), planes
 
 
 @numba.njit(cache=True)
@@ -749,6 +759,14 @@ def line_quads(window: np.ndarray, *, precision: str = "gl",
     return _quads(window, rectangular, pixel_offset, gl)
 
 
+def sample_offsets(positions: np.ndarray, rectangular: bool, gl: bool) -> np.ndarray:
+    """The sample positions (S, 2) in [0, 1) as raster offsets (S, 2) float64
+    from where a line quad puts pixel i (its centre, or its corner for
+    rectangular lines), rounded to 1/256 pixel in gl precision."""
+    offsets = (np.asarray(positions, np.float64) - (0.0 if rectangular else 0.5)) * FIXED_ONE
+    return np.ascontiguousarray(np.rint(offsets) if gl else offsets)
+
+
 def rasterize_lines(window: np.ndarray, width: int, height: int, precision: str = "gl", *,
                     sample_positions: np.ndarray | None = None, rectangular: bool | None = None,
                     bottom_edge_rule: int = 0) -> tuple[Fragments, np.ndarray]:
@@ -779,14 +797,10 @@ def rasterize_lines(window: np.ndarray, width: int, height: int, precision: str 
         rectangular = len(positions) > 1
     gl = precision == "gl"
     unit = float(FIXED_ONE)
-    pixel_offset = 0.0 if rectangular else 0.5
-    offsets = (positions - pixel_offset) * FIXED_ONE
-    if gl:
-        offsets = np.rint(offsets)
+    offsets = sample_offsets(positions, rectangular, gl)
     if len(window) == 0:
         return Fragments.allocate(np.zeros(0, np.int64))[0], np.zeros(0)
     qx, qy, ok = line_quads(window, precision=precision, rectangular=rectangular)
-    offsets = np.ascontiguousarray(offsets, np.float64)
     ends = np.ascontiguousarray(window[..., :2])
     if gl:
         ends = ends.astype(np.float32).astype(np.float64)

@@ -258,7 +258,8 @@ def fragment_chunks(frags: rasterize.Fragments, size: int | None = None):
     size = size or FRAGMENT_CHUNK
     for start in range(0, len(frags), size):
         stop = start + size
-        yield rasterize.Fragments(frags.tri[start:stop], frags.x[start:stop], frags.y[start:stop], frags.mask[start:stop])
+        yield rasterize.Fragments(frags.tri[start:stop], frags.x[start:stop], frags.y[start:stop],
+                                  frags.mask[start:stop])
 
 
 def check_sample_memory(scene: Scene, n_samples: int, bytes_per_sample: int) -> None:
