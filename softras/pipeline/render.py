@@ -351,98 +351,167 @@ def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: 
     y-up rows: float64 k/255 values for rgba8 in gl precision, float32 for
     rgba32f in gl precision (float32 storage, as GL's), float64 in exact.
     """
-    gl = precision == "gl"
-    quantize = gl and rgba8
-    policy = clipping or ("llvmpipe" if gl else "guard_band")
-    offsets, unit = setup.sample_offsets(positions, precision)
-    width, height = scene.width, scene.height
-    color, depth = ops.new_framebuffer(width, height, len(positions), scene.background, quantize=quantize)
-    if gl and not rgba8:
-        color = color.astype(np.float32)
-
+    inputs = Pass.of(positions, precision=precision, rgba8=rgba8, clipping=clipping,
+                     texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
+                     texture_bounds=texture_bounds, tie_rule=tie_rule)
+    color, depth = new_pass_framebuffer(scene, inputs)
     for draw in ordered_draws(scene):
-        mesh = draw.mesh
-        mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
-        clip_pos = vertex.to_clip(mesh.positions, mvp, precision)
-        if mesh.primitive == "lines":
-            if draw.material.line_problems():
-                raise NotImplementedError(f"{draw.path}: softras draws lines unlit and untextured only, "
-                                          f"this material has {', '.join(draw.material.line_problems())}")
-            lf = lines.line_fragments(clip_pos, mesh.indices, width, height, values=vertex_colors(mesh),
-                                      precision=precision,
-                                      sample_positions=positions, policy=policy)
-            if len(lf):
-                f = lf.fragments
-                ops.apply_fragments(f.x, f.y, f.mask, ops.quantize_depth(lf.z) if gl else lf.z,
-                                    fragment.shade_unlit(lf.values, draw.material.color), color, depth,
-                                    ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
-                                    ops.BLEND_MODES[draw.blend], quantize)
-            continue
-        clipped = clip_stage.clip_triangles(clip_pos, mesh.indices, precision=precision,
-                                            policy=policy, width=width, height=height)
-        tris = setup.setup_triangles(clipped.clip, width, height, precision=precision,
-                                     cull=draw.cull, offsets=offsets, unit=unit,
-                                     generated=clipped.generated, tie_rule=tie_rule,
-                                     front_face=scene.front_face)
-        if len(tris) == 0:
-            continue
-
-        source, corners = corner_values(clipped, tris, mesh)
-        material = draw.material
-        base = vertex_base_colors(scene, draw)                 # straight, per vertex
-        shading = material.shading
-        if shading in ("flat", "phong"):                       # (Gouraud is lit already)
-            world = vertex.world_positions(mesh.positions, draw.world)
-            eye = vertex.eye_position(scene.camera.view)
-        if shading == "flat":
-            face_colors = flat_colors(world, source, base, eye, scene.lights, material)[0]
-        tex = texture.prepare(scene.textures[material.texture]) if material.texture is not None else None
-
-        # The draw rasterized by bands of rows and its fragments shaded in
-        # chunks, in order: a pixel sees the triangles in draw order within
-        # its band, and each fragment's work reads only its own triangle and
-        # position (texture derivatives included), so the picture is the
-        # same, and the fragment list (20 bytes a fragment) and the
-        # per-fragment arrays (~300 bytes in exact precision) are bounded by
-        # the band and the chunk, not by the draw.
-        for bbox in row_bands(tris.bbox, width, len(positions)):
-            frags = rasterize.rasterize(dataclasses.replace(tris, bbox=bbox), offsets, unit)
-            for chunk in fragment_chunks(frags):
-                t = chunk.tri
-                centres = np.stack([chunk.x + 0.5, chunk.y + 0.5], axis=1)
-                lam = interpolate.barycentric(tris.window[t, :, :2], centres)
-                persp = interpolate.perspective_weights(lam, tris.inv_w[t])
-                z = interpolate.depth_at_samples(tris.window[t], chunk.x, chunk.y, positions)
-                if gl:
-                    z = ops.quantize_depth(z)
-                if shading == "flat":
-                    colors = face_colors[t]
-                elif shading == "phong":
-                    colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
-                    if material.normal_map is not None or material.bump_map is not None:
-                        normal = mapped_normals(scene, draw, persp, corners, tris, t, chunk, centres, normal,
-                                                precision, texture_fixed_point, texture_bounds)
-                    lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
-                    colors = np.concatenate([lit, colors[:, 3:]], axis=1)
-                else:
-                    colors = interpolate.interpolate(persp, corners(base)[t])
-                texel = None
-                if tex is not None:
-                    corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, chunk, centres,
-                                                              gl)
-                    if texture_bounds is None:
-                        texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
-                                                              texture_filter)
-                    else:       # every derivative GL permits: quad differences and analytic
-                        candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], chunk.x,
-                                                                    chunk.y, centres, corner_uv)
-                        texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
-                rgba = fragment.shade_unlit(colors, np.ones(4), texel)
-                x, y, mask = chunk.x, chunk.y, chunk.mask
-                if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
-                    passed = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
-                    x, y, mask, z, rgba = x[passed], y[passed], mask[passed], z[passed], rgba[passed]
-                ops.apply_fragments(x, y, mask, z, rgba, color, depth,
-                                    ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
-                                    ops.BLEND_MODES[draw.blend], quantize)
+        if draw.mesh.primitive == "lines":
+            draw_lines(scene, draw, inputs, color, depth)
+        else:
+            draw_triangles(scene, draw, inputs, color, depth)
     return color
+
+
+@dataclass(frozen=True)
+class Pass:
+    """What every draw of one pass reads: the `render_stages` options
+    (precision, texture_fixed_point, texture_filter, texture_bounds,
+    tie_rule), the pass's sample positions (S, 2) and their raster offsets
+    and unit (`softras.pipeline.setup.sample_offsets`), quantize (an RGBA8
+    buffer in gl precision: bytes as k/255) and the clipping policy."""
+    precision: str
+    positions: np.ndarray
+    offsets: np.ndarray
+    unit: float
+    rgba8: bool
+    quantize: bool
+    policy: str
+    texture_fixed_point: bool
+    texture_filter: object
+    texture_bounds: str | None
+    tie_rule: str
+
+    @classmethod
+    def of(cls, positions: np.ndarray, *, precision: str, rgba8: bool, clipping: str | None,
+           texture_fixed_point: bool, texture_filter=None, texture_bounds: str | None = None,
+           tie_rule: str = "left_bottom") -> "Pass":
+        gl = precision == "gl"
+        offsets, unit = setup.sample_offsets(positions, precision)
+        return cls(precision=precision, positions=positions, offsets=offsets, unit=unit, rgba8=rgba8,
+                   quantize=gl and rgba8, policy=clipping or ("llvmpipe" if gl else "guard_band"),
+                   texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
+                   texture_bounds=texture_bounds, tie_rule=tie_rule)
+
+
+def new_pass_framebuffer(scene: Scene, inputs: Pass) -> tuple[np.ndarray, np.ndarray]:
+    """The pass's cleared (colour (H, W, S, 4), depth (H, W, S)) buffers
+    (`softras.pipeline.ops.new_framebuffer`; float32 colour for rgba32f in
+    gl precision)."""
+    color, depth = ops.new_framebuffer(scene.width, scene.height, len(inputs.positions), scene.background,
+                                       quantize=inputs.quantize)
+    if inputs.precision == "gl" and not inputs.rgba8:
+        color = color.astype(np.float32)
+    return color, depth
+
+
+def draw_clip_positions(scene: Scene, draw, precision: str) -> np.ndarray:
+    """A draw's vertices in clip space (V, 4) (`softras.pipeline.vertex.to_clip`)."""
+    mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
+    return vertex.to_clip(draw.mesh.positions, mvp, precision)
+
+
+def draw_lines(scene: Scene, draw, inputs: Pass, color: np.ndarray, depth: np.ndarray) -> None:
+    """One line draw into the pass's buffers: clipped, rasterized
+    (`softras.pipeline.lines`), shaded unlit and applied."""
+    mesh = draw.mesh
+    gl = inputs.precision == "gl"
+    if draw.material.line_problems():
+        raise NotImplementedError(f"{draw.path}: softras draws lines unlit and untextured only, "
+                                  f"this material has {', '.join(draw.material.line_problems())}")
+    lf = lines.line_fragments(draw_clip_positions(scene, draw, inputs.precision), mesh.indices, scene.width,
+                              scene.height, values=vertex_colors(mesh), precision=inputs.precision,
+                              sample_positions=inputs.positions, policy=inputs.policy)
+    if len(lf):
+        f = lf.fragments
+        ops.apply_fragments(f.x, f.y, f.mask, ops.quantize_depth(lf.z) if gl else lf.z,
+                            fragment.shade_unlit(lf.values, draw.material.color), color, depth,
+                            ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
+                            ops.BLEND_MODES[draw.blend], inputs.quantize)
+
+
+def set_up_draw(scene: Scene, draw, inputs: Pass):
+    """A triangle draw through the vertex, clip and setup stages: its
+    `softras.pipeline.clip.ClippedTriangles` and
+    `softras.pipeline.setup.TriangleSetup` (possibly empty)."""
+    clipped = clip_stage.clip_triangles(draw_clip_positions(scene, draw, inputs.precision), draw.mesh.indices,
+                                        precision=inputs.precision, policy=inputs.policy, width=scene.width,
+                                        height=scene.height)
+    tris = setup.setup_triangles(clipped.clip, scene.width, scene.height, precision=inputs.precision,
+                                 cull=draw.cull, offsets=inputs.offsets, unit=inputs.unit,
+                                 generated=clipped.generated, tie_rule=inputs.tie_rule,
+                                 front_face=scene.front_face)
+    return clipped, tris
+
+
+def draw_triangles(scene: Scene, draw, inputs: Pass, color: np.ndarray, depth: np.ndarray) -> None:
+    """One triangle draw into the pass's buffers: set up (`set_up_draw`),
+    rasterized, interpolated, shaded (unlit, flat, Gouraud or Phong;
+    textured, normal or bump mapped) and applied, fragment by fragment in
+    draw order."""
+    precision, positions, texture_fixed_point = inputs.precision, inputs.positions, inputs.texture_fixed_point
+    texture_filter, texture_bounds = inputs.texture_filter, inputs.texture_bounds
+    gl = precision == "gl"
+    mesh = draw.mesh
+    width = scene.width
+    clipped, tris = set_up_draw(scene, draw, inputs)
+    if len(tris) == 0:
+        return
+
+    source, corners = corner_values(clipped, tris, mesh)
+    material = draw.material
+    base = vertex_base_colors(scene, draw)                 # straight, per vertex
+    shading = material.shading
+    if shading in ("flat", "phong"):                       # (Gouraud is lit already)
+        world = vertex.world_positions(mesh.positions, draw.world)
+        eye = vertex.eye_position(scene.camera.view)
+    if shading == "flat":
+        face_colors = flat_colors(world, source, base, eye, scene.lights, material)[0]
+    tex = texture.prepare(scene.textures[material.texture]) if material.texture is not None else None
+
+    # The draw rasterized by bands of rows and its fragments shaded in
+    # chunks, in order: a pixel sees the triangles in draw order within
+    # its band, and each fragment's work reads only its own triangle and
+    # position (texture derivatives included), so the picture is the
+    # same, and the fragment list (20 bytes a fragment) and the
+    # per-fragment arrays (~300 bytes in exact precision) are bounded by
+    # the band and the chunk, not by the draw.
+    for bbox in row_bands(tris.bbox, width, len(positions)):
+        frags = rasterize.rasterize(dataclasses.replace(tris, bbox=bbox), inputs.offsets, inputs.unit)
+        for chunk in fragment_chunks(frags):
+            t = chunk.tri
+            centres = np.stack([chunk.x + 0.5, chunk.y + 0.5], axis=1)
+            lam = interpolate.barycentric(tris.window[t, :, :2], centres)
+            persp = interpolate.perspective_weights(lam, tris.inv_w[t])
+            z = interpolate.depth_at_samples(tris.window[t], chunk.x, chunk.y, positions)
+            if gl:
+                z = ops.quantize_depth(z)
+            if shading == "flat":
+                colors = face_colors[t]
+            elif shading == "phong":
+                colors, position, normal = phong_attributes(persp, corners, t, base, world, draw)
+                if material.normal_map is not None or material.bump_map is not None:
+                    normal = mapped_normals(scene, draw, persp, corners, tris, t, chunk, centres, normal,
+                                            precision, texture_fixed_point, texture_bounds)
+                lit = fragment.blinn_phong(colors[:, :3], position, normal, eye, scene.lights, material)
+                colors = np.concatenate([lit, colors[:, 3:]], axis=1)
+            else:
+                colors = interpolate.interpolate(persp, corners(base)[t])
+            texel = None
+            if tex is not None:
+                corner_uv, st, ddx, ddy = uv_at_fragments(mesh.uvs, corners, persp, tris, t, chunk, centres, gl)
+                if texture_bounds is None:
+                    texel = texture_beyond.sample_texture(tex, st, ddx, ddy, precision, texture_fixed_point,
+                                                          texture_filter)
+                else:       # every derivative GL permits: quad differences and analytic
+                    candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], chunk.x,
+                                                                chunk.y, centres, corner_uv)
+                    texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
+            rgba = fragment.shade_unlit(colors, np.ones(4), texel)
+            x, y, mask = chunk.x, chunk.y, chunk.mask
+            if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample
+                passed = fragment.alpha_test(rgba[:, 3], material.alpha_cutoff, precision)
+                x, y, mask, z, rgba = x[passed], y[passed], mask[passed], z[passed], rgba[passed]
+            ops.apply_fragments(x, y, mask, z, rgba, color, depth,
+                                ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write,
+                                ops.BLEND_MODES[draw.blend], inputs.quantize)
