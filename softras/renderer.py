@@ -4,6 +4,9 @@
 sample count and pattern) that uses only what `softras.kernels` implements
 is drawn by their fused per-draw kernel, everything else by the readable stages of
 `softras.pipeline`; the two give the same bytes (tests/test_fastpath.py).
+In exact precision, untextured triangle draws take the exact kernel
+(`softras.kernels.exact`) and every other draw the stages, into the same
+buffers (tests/test_exact_path.py).
 `render` adds the choice of backend ("soft" or "gl", i.e. glref) behind
 `softras.render`.
 """
@@ -13,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from softras.kernels import draw as kernels
-from softras.kernels import prepare
+from softras.kernels import exact, prepare
 from softras.pipeline import render as stages
 from softras.scene import Scene, load_scene
 
@@ -29,8 +32,9 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     The options are `softras.pipeline.render.render_stages`' (precision,
     samples, pattern, seed, resolve_filter, framebuffer, clipping,
     texture_fixed_point, texture_filter, texture_bounds, tie_rule), plus
-    fast_path : let `softras.kernels` render the scenes they support (the
-    same bytes, from one fused kernel per draw); False: always the stages.
+    fast_path : let `softras.kernels` render the scenes and draws they
+    support (the same bytes, from one fused kernel per draw; in exact
+    precision `softras.kernels.exact`); False: always the stages.
     While the kernels a scene needs are not compiled yet, the stages draw
     it and a background process compiles them, or they are compiled first
     with ``SOFTRAS_COMPILE=wait`` (`softras.kernels.prepare`).
@@ -39,6 +43,8 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                         resolve_filter=resolve_filter, framebuffer=framebuffer, clipping=clipping,
                         texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
                         texture_bounds=texture_bounds, tie_rule=tie_rule)
+    if job.precision == "exact" and fast_path:
+        return stages.resolve(job, exact.render_samples(scene, job))
     # A gl-precision RGBA8 scene that uses only what the kernels implement
     # gets the same bytes from their fused kernel (tests/test_fastpath.py).
     # A new option must either send scenes that use it past this test or be

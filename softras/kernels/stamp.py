@@ -5,8 +5,10 @@ and nothing else, but the tile drivers (`softras.kernels.draw`) and the
 line kernel (`softras.kernels.lines`) inline kernels of every module of
 this folder and some of the stages' (`softras.pipeline.ops`,
 `softras.pipeline.texture`, and for the line kernel
-`softras.pipeline.lines`): an edit of one of those alone would load a stale
-kernel.  The stamp is a closure variable of the kernel, and numba keys a
+`softras.pipeline.lines`), and the exact kernel (`softras.kernels.exact`)
+those of `softras.kernels.interpolate` and `softras.kernels.light`, and
+it calls the stages' (`softras.pipeline.rasterize`, `softras.pipeline.ops`):
+an edit of one of those alone would load a stale kernel.  The stamp is a closure variable of the kernel, and numba keys a
 closure's cache on its variables, so any edit of a module it covers
 compiles the kernel again.
 """
@@ -17,13 +19,18 @@ import hashlib
 from pathlib import Path
 
 
+# Modules of this folder that no other kernel inlines: prepare.py holds no
+# compiled code, and exact.py's kernel is compiled for itself (an edit of it
+# need not compile the tile drivers again: five minutes on two cores).
+NOT_INLINED = ("prepare.py", "exact.py")
+
+
 def sources_stamp(*stage_modules) -> str:
     """SHA-256 of the sources of softras.kernels (every module of this
-    folder but prepare.py, which holds no compiled code) and of the
-    ``stage_modules`` (modules of softras.pipeline whose kernels are
-    inlined too)."""
+    folder but `NOT_INLINED`) and of the ``stage_modules`` (modules of
+    softras.pipeline whose kernels are inlined too)."""
     digest = hashlib.sha256()
-    paths = [path for path in sorted(Path(__file__).resolve().parent.glob("*.py")) if path.name != "prepare.py"]
+    paths = [path for path in sorted(Path(__file__).resolve().parent.glob("*.py")) if path.name not in NOT_INLINED]
     for path in paths + [Path(module.__file__) for module in stage_modules]:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
