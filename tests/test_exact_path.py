@@ -42,9 +42,8 @@ def assert_same_samples(scene, what, **options):
     differ = ~((general == kernel) | (np.isnan(general) & np.isnan(kernel))).all(axis=-1)
     assert not differ.any(), (f"{what}: {int(differ.sum())} samples differ, first at row/col/sample "
                               f"{np.argwhere(differ)[0].tolist()}")
-    picture_options = {k: v for k, v in options.items() if k != "pattern" or v is not None}
-    assert np.array_equal(render_scene(scene, precision="exact", fast_path=False, **picture_options),
-                          render_scene(scene, precision="exact", **picture_options), equal_nan=True), what
+    assert np.array_equal(render_scene(scene, precision="exact", fast_path=False, **options),
+                          render_scene(scene, precision="exact", **options), equal_nan=True), what
 
 
 @pytest.mark.parametrize("samples", [None, 4])
@@ -92,8 +91,8 @@ def test_every_draw_leaves_the_stages_depths_and_colours(seed):
     for node in data["nodes"]:
         node.pop("material", None) if seed % 2 else node["material"].pop("texture", None)
     scene = softras.load_scene(data)
-    inputs = stages.Pass.of(sampling.sample_positions(4), precision="exact", rgba8=True, clipping=None,
-                            texture_fixed_point=True)
+    job = exact_job(scene, samples=4)
+    inputs = stages.Pass.of(job, job.positions)
     general, kernel = stages.new_pass_framebuffer(scene, inputs), stages.new_pass_framebuffer(scene, inputs)
     for draw in softras.scene.ordered_draws(scene):
         assert exact.compiled(draw)

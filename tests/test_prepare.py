@@ -130,10 +130,11 @@ def test_an_unknown_mode_is_refused(monkeypatch):
 
 def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     """numba's cache checks only a kernel's own file: the tile drivers' key
-    (`softras.kernels.draw._SOURCES`) must change with pipeline/ops.py and
-    pipeline/texture.py, whose kernels they inline, the line kernel's
-    with pipeline/lines.py too, and the exact kernel's with
-    pipeline/rasterize.py (`softras.kernels.stamp.sources_stamp`)."""
+    (`softras.kernels.draw._SOURCES`) must change with pipeline/ops.py,
+    pipeline/texture.py and pipeline/rasterize.py, whose kernels they
+    inline, the line kernel's with pipeline/lines.py too, and the exact
+    kernel's with pipeline/rasterize.py and pipeline/ops.py
+    (`softras.kernels.stamp.sources_stamp`)."""
     from pathlib import Path
 
     from softras.kernels import exact as k_exact
@@ -144,12 +145,13 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
 
     line_key = [cell.cell_contents for cell in k_lines._DRAW_LINES.py_func.__closure__]
     exact_key = [cell.cell_contents for cell in k_exact._DRAW.py_func.__closure__]
-    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture)
-    assert line_key == [stamp.sources_stamp(lines, ops)]
+    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize)
+    assert line_key == [stamp.sources_stamp(lines, ops, rasterize)]
     assert exact_key == [stamp.sources_stamp(rasterize, ops)]
     read_bytes = Path.read_bytes
-    for module, modules in ((ops, (ops, texture)), (texture, (ops, texture)), (lines, (lines, ops)),
-                            (k_lines, ()), (rasterize, (rasterize, ops)), (k_light, ())):
+    for module, modules in ((ops, (ops, texture, rasterize)), (texture, (ops, texture, rasterize)),
+                            (rasterize, (ops, texture, rasterize)), (lines, (lines, ops, rasterize)),
+                            (k_lines, ()), (k_light, ())):
         before = stamp.sources_stamp(*modules)
         edited = Path(module.__file__)
         monkeypatch.setattr(Path, "read_bytes", lambda self: read_bytes(self) + (b"#" if self == edited else b""))
@@ -157,7 +159,7 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
         monkeypatch.setattr(Path, "read_bytes", read_bytes)
     # The exact kernel is inlined nowhere: its edits leave the other keys alone
     # (numba's cache checks its own file).
-    before = stamp.sources_stamp(ops, texture)
+    before = stamp.sources_stamp(ops, texture, rasterize)
     edited = Path(k_exact.__file__)
     monkeypatch.setattr(Path, "read_bytes", lambda self: read_bytes(self) + (b"#" if self == edited else b""))
-    assert stamp.sources_stamp(ops, texture) == before
+    assert stamp.sources_stamp(ops, texture, rasterize) == before

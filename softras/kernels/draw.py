@@ -81,14 +81,15 @@ from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _uses_depth, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
-                                       _list_whole_block, _sample_box, _tile_box)
+                                       _list_whole_block, _tile_box)
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
                                      _lanes_bilinear_fixed, _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
-from softras.pipeline import ops, sampling, setup, texture, vertex
+from softras.pipeline import ops, rasterize, sampling, setup, texture, vertex
+from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import check_sample_memory
 from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
@@ -158,13 +159,12 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     fresh buffer; one pass only).
     """
     check_sample_memory(scene, len(positions), SAMPLE_BYTES)
-    passes = sampling.sample_passes(len(positions))
-    if len(passes) == 1:
-        return _render_pass(scene, positions, texture_fixed_point, reuse)
-    color = np.empty((scene.height, scene.width, len(positions), 4), np.uint8)
-    for start, stop in passes:
-        color[:, :, start:stop] = _render_pass(scene, positions[start:stop], texture_fixed_point, True)
-    return color
+
+    def render_pass(pass_positions):
+        # (A pass of several is copied at once: it may take the scratch buffer.)
+        return _render_pass(scene, pass_positions, texture_fixed_point, reuse or len(pass_positions) < len(positions))
+
+    return sampling.in_passes(positions, render_pass)
 
 
 def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool, reuse: bool) -> np.ndarray:
@@ -188,8 +188,8 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
 
 def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_point) -> None:
     """One triangle draw into the byte framebuffer fb (`softras.kernels.ops.Framebuffer`):
-    `softras.pipeline.render._render_pass`'s per-draw work for one draw (see
-    the module docstring)."""
+    `softras.pipeline.render.draw_triangles` in gl precision (see the module
+    docstring)."""
     mesh = draw.mesh
     width, height = scene.width, scene.height
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
@@ -273,7 +273,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, lights, lighting, n_threads):
-        """`softras.pipeline.render._render_pass` for one triangle draw after its
+        """`softras.pipeline.render.draw_triangles` for one triangle draw after its
         set-up: rasterize, shade and apply every binned triangle (`Bins` of the
         set-up `Triangles`) at the `Samples`, tiles in parallel, into the
         `Framebuffer` fb with the `DrawState`, the texture's `Sampler` and
@@ -336,7 +336,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     (`softras.kernels.rasterize._block_test`); the covered pixels listed as
     lanes and shaded (`_flat_block`) from LANES of them on and after the
     triangle's last block.  The per-pixel arithmetic is
-    `softras.pipeline.render._render_pass`'s, operation for operation.
+    `softras.pipeline.render.draw_triangles`'s, operation for operation.
 
     Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the thread's
     `LaneBuffers`."""
@@ -391,7 +391,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
     every quad of a block inside all edges) and each block's quads are
     shaded at once: `softras.pipeline.texture.sample` and
     `softras.pipeline.ops.apply_fragments` of a textured triangle's
-    fragments, as `softras.pipeline.render._render_pass` does them, on the n
+    fragments, as `softras.pipeline.render.draw_triangles` does them, on the n
     lanes (n / 4 quads, with pixel, centre and coverage) of one triangle in
     one 8x8 block.  Arguments as `_flat_tile`, plus the texture's `Sampler`
     and `Texels` tex.
@@ -532,7 +532,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
                 n_samples):
     """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
     fragments (`softras.pipeline.fragment.shade_unlit` colours), as
-    `softras.pipeline.render._render_pass` does them.
+    `softras.pipeline.render.draw_triangles` does them.
     Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
     depths (vectorised), the depth test keeping the lanes with a passed
@@ -580,7 +580,8 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`),
 # keyed on the kernels' sources and those of the stages' kernels they inline
 # (`unorm8` and `blend_byte` of softras.pipeline.ops, `wrap_index` and
-# `ewa_texel` of softras.pipeline.texture).
-_SOURCES = sources_stamp(ops, texture)
+# `ewa_texel` of softras.pipeline.texture, `_sample_box` of
+# softras.pipeline.rasterize).
+_SOURCES = sources_stamp(ops, texture, rasterize)
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
                for n_samples in DRIVER_SAMPLES for textured in (False, True)}

@@ -14,7 +14,7 @@ float64 buffers.  The bytes are the stages' (tests/test_exact_path.py):
   triangle's pixel box cut to a band of rows;
 - per fragment: `softras.pipeline.interpolate.barycentric`,
   `perspective_weights` (`softras.kernels.interpolate._weights_at`),
-  `interpolate` (`_mix`), `depth_at_samples` (`_depth_at`), for Phong
+  `interpolate` (`_mix`), `depth_at_samples` (`softras.kernels.setup._depth_slopes`), for Phong
   `softras.pipeline.render.phong_attributes` and
   `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
   `shade_unlit`, `alpha_test`, each with the stages' operations in their
@@ -32,13 +32,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from softras.kernels.interpolate import _mix, _weights_at, Corners
-from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, face_colors, scene_lighting
+from softras.kernels.interpolate import Corners, _corner_colors, _mix, _weights_at
+from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, flat_corner_colors, scene_lighting
+from softras.kernels.setup import _depth_slopes
 from softras.kernels.stamp import sources_stamp
-from softras.pipeline import ops, rasterize, render as stages, vertex
+from softras.pipeline import ops, rasterize, render as stages, sampling, vertex
 from softras.pipeline.rasterize import _raster_triangle
-from softras.pipeline.sampling import sample_passes
-from softras.scene import Scene, ordered_draws
+from softras.scene import Scene
 
 # Rows of the picture a thread draws at once.
 BAND_ROWS = 16
@@ -58,55 +58,37 @@ def compiled(draw) -> bool:
 def render_samples(scene: Scene, job: stages.Job) -> np.ndarray:
     """`softras.pipeline.render.render_samples` of an exact-precision job:
     the per-sample colour buffer (H, W, S, 4) float64, premultiplied, GL's
-    y-up rows, in the stages' passes of at most 32 samples."""
+    y-up rows, in the stages' passes of at most 32 samples: the stages'
+    `softras.pipeline.render.render_pass`, with `draw_triangles` for the
+    triangle draws."""
     if job.precision != "exact":
         raise ValueError("softras.kernels.exact renders exact precision only")
-    n_samples = len(job.positions)
-    stages.check_sample_memory(scene, n_samples, stages.SAMPLE_BYTES)
-    passes = sample_passes(n_samples)
-    if len(passes) == 1:
-        return _render_pass(scene, job.positions, job)
-    color = np.empty((scene.height, scene.width, n_samples, 4))
-    for start, stop in passes:
-        color[:, :, start:stop] = _render_pass(scene, job.positions[start:stop], job)
-    return color
-
-
-def _render_pass(scene: Scene, positions: np.ndarray, job: stages.Job) -> np.ndarray:
-    """`softras.pipeline.render._render_pass` in exact precision: every draw
-    into the pass's float64 buffers, `compiled` ones by `draw_triangles`."""
-    inputs = stages.Pass.of(positions, precision="exact", rgba8=job.rgba8, clipping=job.clipping,
-                            texture_fixed_point=job.texture_fixed_point, texture_filter=job.texture_filter,
-                            texture_bounds=job.texture_bounds, tie_rule=job.tie_rule)
-    color, depth = stages.new_pass_framebuffer(scene, inputs)
-    for draw in ordered_draws(scene):
-        if draw.mesh.primitive == "lines":
-            stages.draw_lines(scene, draw, inputs, color, depth)
-        elif compiled(draw):
-            draw_triangles(scene, draw, inputs, color, depth)
-        else:
-            stages.draw_triangles(scene, draw, inputs, color, depth)
-    return color
+    stages.check_sample_memory(scene, len(job.positions), stages.SAMPLE_BYTES)
+    return sampling.in_passes(job.positions, lambda positions: stages.render_pass(
+        scene, stages.Pass.of(job, positions), draw_triangles))
 
 
 def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.ndarray) -> None:
-    """`softras.pipeline.render.draw_triangles` of a `compiled` draw in
-    exact precision: the stages' set-up, then `_draw`.  The corner values
-    are the stages' (`softras.pipeline.render.corner_values`); Gouraud's
-    vertex lighting and flat shading's face colours are the compiled ones of
+    """`softras.pipeline.render.draw_triangles` in exact precision: a
+    `compiled` draw by the stages' set-up, then `_draw`; any other by the
+    stages.  The corner values are the stages'
+    (`softras.pipeline.render.corner_values`); Gouraud's vertex lighting and
+    flat shading's face colours are the compiled ones of
     `softras.kernels.light` (the same bits)."""
+    if not compiled(draw):
+        stages.draw_triangles(scene, draw, inputs, color, depth)
+        return
     clipped, tris = stages.set_up_draw(scene, draw, inputs)
     if len(tris) == 0:
         return
     mesh, material = draw.mesh, draw.material
-    source, corners = stages.corner_values(clipped, tris, mesh)
+    _, corners = stages.corner_values(clipped, tris, mesh)
     base = base_colors(scene, draw)                                    # straight, Gouraud lit
     lit, lights, lighting = np.zeros((1, 3, 6)), *NO_LIGHTING[1:]
-    if material.shading == "flat":
-        shading = FLAT
-        colors = face_colors(scene, draw, base, source)[:, None, :]     # (T', 1, 4)
+    shading = {"flat": FLAT, "phong": PHONG}.get(material.shading, UNLIT)
+    if shading == FLAT:                                                # (T', 3, 4): the colour at corner 0
+        colors = flat_corner_colors(scene, draw, base, clipped.source[tris.triangle])
     else:
-        shading = PHONG if material.shading == "phong" else UNLIT
         colors = corners(base)                                         # (T', 3, 4)
     if shading == PHONG:
         world = vertex.world_positions(mesh.positions, draw.world)
@@ -120,20 +102,6 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
           c(inputs.positions, np.float64), shading, c(colors), c(lit), c(lights), tuple(lighting), color, depth,
           ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
           cutoff is not None, float(cutoff or 0.0), BAND_ROWS)
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _depth_at(window, t, px, py, ox, oy):
-    """`softras.pipeline.interpolate.depth_at_samples` of set-up triangle t
-    (window (T', 3, 3)) at pixel (px, py)'s sample (ox, oy): the depth
-    plane from corner 0, the stages' operations in their order."""
-    x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
-    dx1, dy1, dz1 = window[t, 1, 0] - x0, window[t, 1, 1] - y0, window[t, 1, 2] - z0
-    dx2, dy2, dz2 = window[t, 2, 0] - x0, window[t, 2, 1] - y0, window[t, 2, 2] - z0
-    det = dx1 * dy2 - dx2 * dy1
-    dzdx = (dz1 * dy2 - dz2 * dy1) / det
-    dzdy = (dx1 * dz2 - dx2 * dz1) / det
-    return z0 + dzdx * ((px + ox) - x0) + dzdy * ((py + oy) - y0)
 
 
 def _make_draw(sources: str):
@@ -152,7 +120,8 @@ def _make_draw(sources: str):
         offsets (S, 2) and unit: the raster sample offsets
         (`softras.pipeline.setup.sample_offsets`, exact); positions (S, 2) the
         sample positions in the pixel; shading: UNLIT, FLAT or PHONG; colors
-        (T', 3, 4) straight corner colours, or (T', 1, 4) a face colour (FLAT);
+        (T', 3, 4) straight corner colours (FLAT: the face's at corner 0, zeros
+        at the others, `softras.kernels.light.flat_corner_colors`);
         lit (T', 3, 6) corner world positions and normals (PHONG); lights and
         lighting: `softras.kernels.light.scene_lighting`; the depth function,
         depth write, blend code, and whether the alpha test with ``cutoff``
@@ -181,36 +150,39 @@ def _make_draw(sources: str):
                     continue
                 k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets, unit,
                                      out_x, out_y, out_mask, 0, True)
+                # The triangle's values as scalars: corners, depth plane, corner colours,
+                # and for Phong its corners' world positions and normals.
                 corners = Corners((window[t, 0, 0], window[t, 1, 0], window[t, 2, 0]),
                                   (window[t, 0, 1], window[t, 1, 1], window[t, 2, 1]),
                                   (inv_w[t, 0], inv_w[t, 1], inv_w[t, 2]))
+                x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
+                dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
+                cc = _corner_colors(colors, t)
+                position = normal = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+                if shading == PHONG:
+                    position = ((lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0]), (lit[t, 0, 1], lit[t, 1, 1], lit[t, 2, 1]),
+                                (lit[t, 0, 2], lit[t, 1, 2], lit[t, 2, 2]))
+                    normal = ((lit[t, 0, 3], lit[t, 1, 3], lit[t, 2, 3]), (lit[t, 0, 4], lit[t, 1, 4], lit[t, 2, 4]),
+                              (lit[t, 0, 5], lit[t, 1, 5], lit[t, 2, 5]))
                 for f in range(k):
                     px, py, mask = out_x[f], out_y[f], out_mask[f]
-                    w = _weights_at(corners, px + 0.5, py + 0.5)
-                    if shading == FLAT:
-                        r, g, b, a = colors[t, 0, 0], colors[t, 0, 1], colors[t, 0, 2], colors[t, 0, 3]
-                    else:
-                        r = _mix(w, (colors[t, 0, 0], colors[t, 1, 0], colors[t, 2, 0]))
-                        g = _mix(w, (colors[t, 0, 1], colors[t, 1, 1], colors[t, 2, 1]))
-                        b = _mix(w, (colors[t, 0, 2], colors[t, 1, 2], colors[t, 2, 2]))
-                        a = _mix(w, (colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]))
+                    # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
+                    w = (1.0, 0.0, 0.0) if shading == FLAT else _weights_at(corners, px + 0.5, py + 0.5)
+                    r, g, b, a = _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a)
                     if shading == PHONG:
-                        nx, ny, nz = _unit(_mix(w, (lit[t, 0, 3], lit[t, 1, 3], lit[t, 2, 3])),
-                                           _mix(w, (lit[t, 0, 4], lit[t, 1, 4], lit[t, 2, 4])),
-                                           _mix(w, (lit[t, 0, 5], lit[t, 1, 5], lit[t, 2, 5])))
-                        r, g, b = _lit_point(r, g, b, _mix(w, (lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0])),
-                                             _mix(w, (lit[t, 0, 1], lit[t, 1, 1], lit[t, 2, 1])),
-                                             _mix(w, (lit[t, 0, 2], lit[t, 1, 2], lit[t, 2, 2])),
+                        nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
+                        r, g, b = _lit_point(r, g, b, _mix(w, position[0]), _mix(w, position[1]), _mix(w, position[2]),
                                              nx, ny, nz, lights, lighting)
-                    # `softras.pipeline.fragment.shade_unlit`: straight x material ones, premultiplied.
-                    a = a * 1.0
-                    src[0], src[1], src[2], src[3] = (r * 1.0) * a, (g * 1.0) * a, (b * 1.0) * a, a
+                    # `softras.pipeline.fragment.shade_unlit`: premultiplied (the
+                    # material colour it multiplies by is ones: the values stay).
+                    src[0], src[1], src[2], src[3] = r * a, g * a, b * a, a
                     if alpha_test and a < cutoff:       # (`softras.pipeline.fragment.alpha_test`: NaN kept)
                         continue
                     for s in range(n_samples):
                         if not (mask >> s) & 1:
                             continue
-                        z = _depth_at(window, t, px, py, positions[s, 0], positions[s, 1])
+                        # `softras.pipeline.interpolate.depth_at_samples`, from corner 0
+                        z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
                         if not ops._depth_pass(depth_func, z, depth[py, px, s]):
                             continue
                         if write_z:

@@ -1,6 +1,6 @@
 """Lines on the compiled path: a GL_LINES draw in one compiled loop.
 
-Mirrors what `softras.pipeline.render._render_pass` does with a line draw
+Mirrors what `softras.pipeline.render.draw_lines` does with a line draw
 in gl precision, operation for operation, line by line and without a
 fragment list:
 
@@ -43,8 +43,10 @@ from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
-from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _offset_box, _pixel_mask,
-                                    _plane_distances, _quad_planes, _quad_rows, _row_span, _setup_line)
+from softras.pipeline import rasterize
+from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _pixel_mask, _plane_distances,
+                                    _quad_planes, _quad_rows, _row_span, _setup_line)
+from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import vertex_colors
 
 
@@ -76,7 +78,8 @@ def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
                       _scratch.take("qy", (n, 4), np.float64), _scratch.take("region", (n, 4), np.int64),
                       _scratch.take("window", (n, 2, 3), np.float64), _scratch.take("inv_w", (n, 2), np.float64),
                       _scratch.take("ends", (n, 2, 4), np.float64))
-    _DRAW_LINES(c, finite, np.ascontiguousarray(mesh.indices, np.int64), planes, np.ascontiguousarray(vertex_colors(mesh), np.float64), np.asarray(draw.material.color, np.float64),
+    _DRAW_LINES(c, finite, np.ascontiguousarray(mesh.indices, np.int64), planes,
+                np.ascontiguousarray(vertex_colors(mesh), np.float64), np.asarray(draw.material.color, np.float64),
                 offsets, np.ascontiguousarray(positions, np.float64), rectangular,
                 lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.depth, depth_func,
                 bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend], *table,
@@ -166,7 +169,7 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
     n_samples = depth.shape[2]
     unit = np.float64(FIXED_ONE)
     centre = 0.5 + shift
-    box = _offset_box(offsets)
+    box = _sample_box(offsets)
     white = RGBA(1.0, 1.0, 1.0, 1.0)
     for line in range(table.drawn.shape[0]):
         if not table.drawn[line]:
@@ -228,4 +231,4 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
                 _write_word(color32, py, px, passed, n_samples, blend, word)
 
 
-_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops))
+_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize))

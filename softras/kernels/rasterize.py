@@ -216,13 +216,6 @@ def _list_pixels(n, bx, bx1, by, by1, all_in, edges, offsets, full_mask, rows, l
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _sample_box(offsets):
-    """The extreme sample offsets (1/256 px) of a pixel: (min x, max x, min y,
-    max y), to test a block's corner samples (`_block_test`)."""
-    return offsets[:, 0].min(), offsets[:, 0].max(), offsets[:, 1].min(), offsets[:, 1].max()
-
-
-@numba.njit(error_model="numpy", inline="always")
 def _tile_box(tile, tiles_x, bbox, t, depth):
     """Triangle t's pixel bounding box (its bbox row) within the tile: first
     and last column, first and last row."""

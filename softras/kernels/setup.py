@@ -211,16 +211,23 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
             tri_f[t, _F_Y + k] = wy[k]
             tri_f[t, _F_Z + k] = wz[k]
             tri_f[t, _F_W + k] = iw[k]
-        dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
-        dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
-        det = dx1 * dy2 - dx2 * dy1
-        tri_f[t, _F_DZDX] = (dz1 * dy2 - dz2 * dy1) / det
-        tri_f[t, _F_DZDY] = (dx1 * dz2 - dx2 * dz1) / det
+        tri_f[t, _F_DZDX], tri_f[t, _F_DZDY] = _depth_slopes(wx, wy, wz)
         _corner_values(vertex_colors, corner_colors, t, clipped, tri_i[t, _I_SWAP])
         if vertex_uvs.shape[0]:
             _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP])
         if vertex_lit.shape[0]:
             _corner_values(vertex_lit, corner_lit, t, clipped, tri_i[t, _I_SWAP])
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _depth_slopes(wx, wy, wz):
+    """The depth plane's dz/dx and dz/dy through a triangle's three window
+    corners (x, y, z each a 3-tuple), from corner 0: the operations of
+    `softras.pipeline.interpolate.depth_at_samples` in their order."""
+    dx1, dy1, dz1 = wx[1] - wx[0], wy[1] - wy[0], wz[1] - wz[0]
+    dx2, dy2, dz2 = wx[2] - wx[0], wy[2] - wy[0], wz[2] - wz[0]
+    det = dx1 * dy2 - dx2 * dy1
+    return (dz1 * dy2 - dz2 * dy1) / det, (dx1 * dz2 - dx2 * dz1) / det
 
 
 @numba.njit(cache=True, inline="always")

@@ -80,7 +80,7 @@ import numba
 import numpy as np
 
 from softras.pipeline.clip import clip_planes
-from softras.pipeline.rasterize import Fragments
+from softras.pipeline.rasterize import Fragments, _sample_box
 from softras.pipeline.setup import viewport_transform
 
 FIXED_ORDER = 8
@@ -582,7 +582,7 @@ def _raster_quad(qx, qy, bottom_edge_rule, gl, offsets, unit, width, height,
     region = np.array([0, width - 1, 0, height - 1])
     if gl and not _binned_region(qx, qy, bottom_edge_rule, offsets.shape[0] > 1, width, height, region):
         return 0
-    box = _offset_box(offsets)
+    box = _sample_box(offsets)
     py0, py1 = _quad_rows(qy, unit, box, region)
     count = 0
     for py in range(py0, py1 + 1):
@@ -617,12 +617,6 @@ def _quad_plane(qx, qy, i, bottom_edge_rule):
     return Plane(dcdx, dcdy, qx[i], qy[i], adj)
 
 
-@numba.njit(cache=True, inline="always")
-def _offset_box(offsets):
-    """The extreme sample offsets (S, 2) of a pixel: (min x, max x, min y, max y)."""
-    return offsets[:, 0].min(), offsets[:, 0].max(), offsets[:, 1].min(), offsets[:, 1].max()
-
-
 # The candidate search's margin, in pixels, for the rounding of its bounds:
 # they are quotients with relative errors ~1e-16, off by less than 1e-6
 # pixel for positions below 2^40 raster units (clipped lines lie within the
@@ -635,7 +629,7 @@ _MARGIN = 1e-6
 @numba.njit(cache=True, inline="always")
 def _quad_rows(qy, unit, box, region):
     """The candidate pixel rows (py0, py1) of a quad: those whose sample band
-    (box: `_offset_box`) can meet its y extent, ceil((ymin - max oy) / unit)
+    (box: `_sample_box`) can meet its y extent, ceil((ymin - max oy) / unit)
     .. floor((ymax - min oy) / unit), widened by _MARGIN, within region (x0,
     x1, y0, y1)."""
     ymin = min(min(qy[0], qy[1]), min(qy[2], qy[3]))
@@ -650,7 +644,7 @@ def _row_span(qx, qy, py, unit, box, region):
     the quad's x extent within the row's sample band (its corners inside
     the band and its edges' crossings of the band's borders: the quad is a
     parallelogram, convex, so nothing of it in the band lies beyond these),
-    widened by the sample offsets (box: `_offset_box`) and _MARGIN, within
+    widened by the sample offsets (box: `_sample_box`) and _MARGIN, within
     region.  One band border for
     one row of samples (the same y: lo_y == hi_y)."""
     lo_y = py * unit + box[2]

@@ -72,6 +72,14 @@ def _edge(a, b, x0, y0, x, y):
     return a * (x - x0) + b * (y - y0)
 
 
+@numba.njit(cache=True, inline="always")
+def _sample_box(offsets):
+    """The extreme sample offsets (S, 2) of a pixel, in raster units: (min x,
+    max x, min y, max y), the corner samples of a block or a band of rows
+    (also `softras.pipeline.lines`' and the kernels')."""
+    return offsets[:, 0].min(), offsets[:, 0].max(), offsets[:, 1].min(), offsets[:, 1].max()
+
+
 @numba.njit(cache=True)
 def _raster_triangle(a, b, x0, y0, inclusive, bbox, offsets, unit, out_x, out_y, out_mask, start, write):
     """Cover one triangle; write fragments from index `start` when `write`.
@@ -81,10 +89,7 @@ def _raster_triangle(a, b, x0, y0, inclusive, bbox, offsets, unit, out_x, out_y,
     """
     n_samples = offsets.shape[0]
     full_mask = np.uint32((1 << n_samples) - 1) if n_samples < 32 else np.uint32(0xFFFFFFFF)
-    min_ox = offsets[:, 0].min()
-    max_ox = offsets[:, 0].max()
-    min_oy = offsets[:, 1].min()
-    max_oy = offsets[:, 1].max()
+    min_ox, max_ox, min_oy, max_oy = _sample_box(offsets)
     count = 0
     for by in range(bbox[2], bbox[3] + 1, BLOCK):
         by1 = min(by + BLOCK - 1, bbox[3])

@@ -277,20 +277,10 @@ def check_sample_memory(scene: Scene, n_samples: int, bytes_per_sample: int) -> 
 def render_samples(scene: Scene, job: Job) -> np.ndarray:
     """The per-sample colour buffer (H, W, S, 4) of every draw, GL's y-up rows,
     premultiplied: float64 k/255 values for rgba8 in gl precision, float32 for
-    rgba32f in gl precision, float64 in exact (`_render_pass`, in passes of
+    rgba32f in gl precision, float64 in exact (`render_pass`, in passes of
     at most MAX_PASS_SAMPLES samples)."""
-    n_samples = len(job.positions)
-    check_sample_memory(scene, n_samples, SAMPLE_BYTES)
-    color = None
-    for start, stop in sample_passes(n_samples):
-        part = _render_pass(scene, job.positions[start:stop], precision=job.precision, rgba8=job.rgba8,
-                            clipping=job.clipping, texture_fixed_point=job.texture_fixed_point,
-                            texture_filter=job.texture_filter, texture_bounds=job.texture_bounds,
-                            tie_rule=job.tie_rule)
-        if color is None:
-            color = np.empty(part.shape[:2] + (n_samples, 4), part.dtype)
-        color[:, :, start:stop] = part
-    return color
+    check_sample_memory(scene, len(job.positions), SAMPLE_BYTES)
+    return sampling.in_passes(job.positions, lambda positions: render_pass(scene, Pass.of(job, positions)))
 
 
 def resolve(job: Job, color: np.ndarray) -> np.ndarray:
@@ -342,34 +332,32 @@ def vertex_base_colors(scene: Scene, draw) -> np.ndarray:
     return np.concatenate([lit, base[:, 3:]], axis=1)
 
 
-def _render_pass(scene: Scene, positions: np.ndarray, *, precision: str, rgba8: bool,
-                 clipping: str | None, texture_fixed_point: bool, texture_filter=None,
-                 texture_bounds: str | None = None, tie_rule: str = "left_bottom") -> np.ndarray:
-    """Render every draw at <= 32 sample positions (S, 2) in [0, 1)^2.
+def render_pass(scene: Scene, inputs: "Pass", triangles=None) -> np.ndarray:
+    """Render every draw at the pass's <= 32 sample positions (`Pass`).
 
     Returns the per-sample colour buffer (H, W, S, 4) premultiplied, GL's
     y-up rows: float64 k/255 values for rgba8 in gl precision, float32 for
     rgba32f in gl precision (float32 storage, as GL's), float64 in exact.
+    triangles : the function that draws a triangle draw, with
+    `draw_triangles`' arguments (default `draw_triangles`; the exact
+    kernel's `softras.kernels.exact.draw_triangles`).
     """
-    inputs = Pass.of(positions, precision=precision, rgba8=rgba8, clipping=clipping,
-                     texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
-                     texture_bounds=texture_bounds, tie_rule=tie_rule)
     color, depth = new_pass_framebuffer(scene, inputs)
     for draw in ordered_draws(scene):
         if draw.mesh.primitive == "lines":
             draw_lines(scene, draw, inputs, color, depth)
         else:
-            draw_triangles(scene, draw, inputs, color, depth)
+            (triangles or draw_triangles)(scene, draw, inputs, color, depth)
     return color
 
 
 @dataclass(frozen=True)
 class Pass:
-    """What every draw of one pass reads: the `render_stages` options
-    (precision, texture_fixed_point, texture_filter, texture_bounds,
-    tie_rule), the pass's sample positions (S, 2) and their raster offsets
-    and unit (`softras.pipeline.setup.sample_offsets`), quantize (an RGBA8
-    buffer in gl precision: bytes as k/255) and the clipping policy."""
+    """What every draw of one pass reads: the `Job`'s options (precision,
+    rgba8, texture_fixed_point, texture_filter, texture_bounds, tie_rule),
+    the pass's sample positions (S, 2) and their raster offsets and unit
+    (`softras.pipeline.setup.sample_offsets`), quantize (an RGBA8 buffer in
+    gl precision: bytes as k/255) and the clipping policy."""
     precision: str
     positions: np.ndarray
     offsets: np.ndarray
@@ -383,15 +371,14 @@ class Pass:
     tie_rule: str
 
     @classmethod
-    def of(cls, positions: np.ndarray, *, precision: str, rgba8: bool, clipping: str | None,
-           texture_fixed_point: bool, texture_filter=None, texture_bounds: str | None = None,
-           tie_rule: str = "left_bottom") -> "Pass":
-        gl = precision == "gl"
-        offsets, unit = setup.sample_offsets(positions, precision)
-        return cls(precision=precision, positions=positions, offsets=offsets, unit=unit, rgba8=rgba8,
-                   quantize=gl and rgba8, policy=clipping or ("llvmpipe" if gl else "guard_band"),
-                   texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
-                   texture_bounds=texture_bounds, tie_rule=tie_rule)
+    def of(cls, job: Job, positions: np.ndarray) -> "Pass":
+        """The pass of ``job`` at ``positions`` (S, 2), some of job.positions."""
+        gl = job.precision == "gl"
+        offsets, unit = setup.sample_offsets(positions, job.precision)
+        return cls(precision=job.precision, positions=positions, offsets=offsets, unit=unit, rgba8=job.rgba8,
+                   quantize=gl and job.rgba8, policy=job.clipping or ("llvmpipe" if gl else "guard_band"),
+                   texture_fixed_point=job.texture_fixed_point, texture_filter=job.texture_filter,
+                   texture_bounds=job.texture_bounds, tie_rule=job.tie_rule)
 
 
 def new_pass_framebuffer(scene: Scene, inputs: Pass) -> tuple[np.ndarray, np.ndarray]:

@@ -162,6 +162,23 @@ def sample_passes(samples: int) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
+def in_passes(positions: np.ndarray, render_pass) -> np.ndarray:
+    """A per-sample colour buffer (H, W, S, 4) rendered in the passes of
+    `sample_passes`: ``render_pass(positions[start:stop])`` returns one
+    pass's (H, W, stop - start, 4) buffer; a single pass's is returned as it
+    is, several are copied into one buffer of their type."""
+    passes = sample_passes(len(positions))
+    if len(passes) == 1:
+        return render_pass(positions)
+    color = None
+    for start, stop in passes:
+        part = render_pass(positions[start:stop])
+        if color is None:
+            color = np.empty(part.shape[:2] + (len(positions), 4), part.dtype)
+        color[:, :, start:stop] = part
+    return color
+
+
 def sample_positions(samples: int, pattern=None, seed: int = 0) -> np.ndarray:
     """(samples, 2) float64 positions in [0, 1)^2 for a pattern name (see the module docstring).
 
