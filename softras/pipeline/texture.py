@@ -202,7 +202,7 @@ def choose_levels(rho2: np.ndarray, min_filter: str, n_levels: int, gl: bool) ->
     else:
         with np.errstate(divide="ignore", invalid="ignore"):
             lod = 0.5 * np.log2(rho2)
-        lod = np.nan_to_num(lod, nan=-np.inf)
+        lod = np.where(np.isnan(lod), -np.inf, lod)     # infinities kept: lambda = +inf is the last level
         if mip_nearest:
             # GL: d = ceil(lambda + 1/2) - 1 for lambda > 1/2, else 0 (halves round down).
             level = np.where(lod > 0.5, np.ceil(lod + 0.5) - 1, 0)

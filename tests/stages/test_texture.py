@@ -308,6 +308,14 @@ def test_lod_magnification_and_clamping():
         far = _levels(2.0 ** 20, "linear_mipmap_linear", gl, n_levels=9)
         assert (far.level0[0], far.level1[0], far.frac[0]) == (8, 8, 0)
         assert _levels(2.0 ** 20, "nearest_mipmap_nearest", gl, n_levels=9).level0[0] == 8
+        # An infinite footprint (derivatives that overflowed) is the last level,
+        # lambda = +inf >= q (GL 4.5 section 8.14.3); a zero one is level 0.
+        if not gl:
+            for min_filter in ("linear_mipmap_linear", "nearest_mipmap_nearest", "linear_mipmap_nearest"):
+                choice = _levels(np.inf, min_filter, gl, n_levels=9)
+                assert (choice.level0[0], choice.level1[0], choice.frac[0]) == (8, 8, 0), min_filter
+                assert not choice.magnified[0]
+                assert _levels(0.0, min_filter, gl, n_levels=9).level0[0] == 0
         # Without a mipmap filter only the min/mag switch matters.
         plain = _levels(8, "linear", gl)
         assert not plain.magnified[0] and plain.level0[0] == 0
