@@ -44,7 +44,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                         texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
                         texture_bounds=texture_bounds, tie_rule=tie_rule)
     if job.precision == "exact" and fast_path:
-        return stages.resolve(job, exact.render_samples(scene, job))
+        return exact.resolve(job, exact.render_samples(scene, job))
     # A gl-precision RGBA8 scene that uses only what the kernels implement
     # gets the same bytes from their fused kernel (tests/test_fastpath.py).
     # A new option must either send scenes that use it past this test or be

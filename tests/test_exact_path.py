@@ -6,8 +6,9 @@ against `softras.kernels.exact.render_samples`), not only the pictures: a
 one-ulp difference in any sum or product fails them.  The scenes are the
 conformance scenes and the seeded random scenes of tests/test_fastpath.py
 (every depth function and blend equation, culling, triangles crossing every
-clip plane, lit with every shading, alpha-tested), with lines and textured
-draws between them (those draws take the stages, into the same buffers).
+clip plane, lit with every shading, textured with every filter and wrap,
+alpha-tested), with lines and the draws the kernel leaves to the stages
+between them (into the same buffers).
 """
 
 from __future__ import annotations
@@ -86,16 +87,18 @@ def test_random_alpha_tested_scenes_give_the_stages_samples(seed):
 def test_every_draw_leaves_the_stages_depths_and_colours(seed):
     """Draw by draw, the kernel leaves the depth buffer as the stages do as
     well (a depth one ulp off shows in the colours only where a later test
-    compares it), on random lit scenes with every depth function."""
+    compares it), on random lit scenes with every depth function (odd
+    seeds textured), and one unlit."""
     data = lit_scene(seed, ["gouraud", "flat", "phong"][seed % 3])
     for node in data["nodes"]:
-        node.pop("material", None) if seed % 2 else node["material"].pop("texture", None)
+        if seed == 5:
+            node.pop("material", None)
     scene = softras.load_scene(data)
     job = exact_job(scene, samples=4)
     inputs = stages.Pass.of(job, job.positions)
     general, kernel = stages.new_pass_framebuffer(scene, inputs), stages.new_pass_framebuffer(scene, inputs)
     for draw in softras.scene.ordered_draws(scene):
-        assert exact.compiled(draw)
+        assert exact.compiled(scene, draw, inputs)
         stages.draw_triangles(scene, draw, inputs, *general)
         exact.draw_triangles(scene, draw, inputs, *kernel)
         for name, a, b in zip(("colour", "depth"), general, kernel):
@@ -132,24 +135,87 @@ def test_any_band_height_gives_the_same_samples(band_rows, monkeypatch):
     assert np.array_equal(exact.render_samples(scene, job), expected, equal_nan=True)
 
 
-def test_only_untextured_triangle_draws_take_the_kernel(monkeypatch):
-    """Lines, textures, normal and bump maps take the stages' per-draw
-    functions; the rest the kernel."""
-    data = random_line_scene(3)
-    data["nodes"].append(random_scene(5, textured=True)["nodes"][0])
-    data["textures"] = random_scene(5, textured=True)["textures"]
-    scene = softras.load_scene(data)
+def routes(monkeypatch) -> list:
+    """The list that each draw of a render appends its route to: "kernel"
+    (the stages' set-up for `exact._DRAW`), "stages" or "lines" (their
+    per-draw functions; none of them draws)."""
     drawn = []
-    monkeypatch.setattr(exact, "_DRAW", lambda *args: drawn.append("kernel"))
+    set_up = stages.set_up_draw
+    monkeypatch.setattr(stages, "set_up_draw", lambda *args: (drawn.append("kernel"), set_up(*args))[1])
+    monkeypatch.setattr(exact, "_DRAW", lambda *args: None)
     monkeypatch.setattr(stages, "draw_lines", lambda *args: drawn.append("lines"))
     monkeypatch.setattr(stages, "draw_triangles", lambda *args: drawn.append("stages"))
-    exact.render_samples(scene, exact_job(scene))
-    expected = ["lines" if d.mesh.primitive == "lines" else "stages" if d.material.texture else "kernel"
+    return drawn
+
+
+@pytest.mark.parametrize("options", [{}, {"texture_filter": "ewa"}, {"texture_bounds": "hi"}, {"anisotropy": 4}])
+def test_which_draws_take_the_kernel(options, monkeypatch):
+    """Lines, anisotropic filtering, the filters beyond GL's, texture bounds
+    and normal or bump maps take the stages' per-draw functions; the rest,
+    textured or not, the kernel."""
+    data = random_line_scene(3)
+    textured = random_scene(5, textured=True)
+    data["nodes"] += textured["nodes"][:2]
+    data["textures"] = textured["textures"]
+    for tex in data["textures"].values():
+        tex["max_anisotropy"] = options.get("anisotropy", 1)
+    scene = softras.load_scene(data)
+    job = exact_job(scene, **{k: v for k, v in options.items() if k != "anisotropy"})
+    drawn = routes(monkeypatch)
+    exact.render_samples(scene, job)
+    textures_compiled = not options
+    expected = ["lines" if d.mesh.primitive == "lines" else
+                "stages" if d.material.texture and not textures_compiled else "kernel"
                 for d in softras.scene.ordered_draws(scene)]
-    assert drawn == expected and "kernel" in drawn and "stages" in drawn and "lines" in drawn
+    assert drawn == expected and "kernel" in drawn and "lines" in drawn
+    assert any(d.material.texture for d in scene.draws)
+
+
+@pytest.mark.parametrize("map_key", ["bump_map", "normal_map"])
+def test_normal_and_bump_mapped_draws_take_the_stages(map_key, monkeypatch):
+    import json
+    data = json.loads((Path(__file__).resolve().parents[1] / "scenes" / "bump_mapped_plane.json").read_text())
+    material = data["nodes"][0]["material"]
+    material[map_key] = material.pop("bump_map")
+    if map_key == "normal_map":
+        del material["bump_scale"]
+    data["nodes"].append(dict(data["nodes"][0], name="plain", material={"shading": "phong"}))
+    scene = softras.load_scene(data)
+    drawn = routes(monkeypatch)
+    exact.render_samples(scene, exact_job(scene))
+    assert drawn == ["stages", "kernel"]
 
 
 def test_gl_precision_is_refused():
     scene = softras.load_scene(random_scene(0))
     with pytest.raises(ValueError, match="exact precision only"):
         exact.render_samples(scene, exact_job(scene, precision="gl"))
+
+
+@pytest.mark.parametrize("samples", [1, 2, 4, 9, 16, 49])
+def test_the_compiled_resolve_gives_the_stages_bytes(samples):
+    """`exact.resolve` (box, RGBA8) = the stages' resolve, byte for byte, on
+    sample values around every byte's rounding boundary ((k + 1/2) / 255 and
+    the next doubles either side), out of [0, 1], infinite, NaN and -0."""
+    rng = np.random.default_rng(samples)
+    height, width = 37, 23
+    boundary = (rng.integers(0, 255, (height, width, samples, 4)) + 0.5) / 255.0
+    nudged = np.nextafter(boundary, rng.choice([-np.inf, np.inf], boundary.shape))
+    color = np.where(rng.random(boundary.shape) < 0.5, boundary, nudged)
+    special = [np.nan, np.inf, -np.inf, -0.0, -0.25, 1.5, 1.0, 0.0]
+    pick = rng.random(color.shape) < 0.05
+    color[pick] = rng.choice(special, int(pick.sum()))
+    scene = softras.load_scene(random_scene(0))
+    job = exact_job(scene, samples=samples, pattern="halton" if samples not in (1, 4) else None)
+    with np.errstate(invalid="ignore"):            # (numpy's NaN to byte conversion warns)
+        expected = stages.resolve(job, color)
+    assert np.array_equal(exact.resolve(job, color), expected)
+
+
+def test_the_compiled_resolve_leaves_the_tent_and_rgba32f_to_the_stages():
+    scene = softras.load_scene(random_scene(0))
+    color = np.random.default_rng(0).random((scene.height, scene.width, 4, 4))
+    for options in ({"resolve_filter": "tent", "samples": 4}, {"framebuffer": "rgba32f", "samples": 4}):
+        job = exact_job(scene, **options)
+        out, expected = exact.resolve(job, color), stages.resolve(job, color)
+        assert out.dtype == expected.dtype and np.array_equal(out, expected), options

@@ -133,8 +133,8 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     (`softras.kernels.draw._SOURCES`) must change with pipeline/ops.py,
     pipeline/texture.py and pipeline/rasterize.py, whose kernels they
     inline, the line kernel's with pipeline/lines.py too, and the exact
-    kernel's with pipeline/rasterize.py and pipeline/ops.py
-    (`softras.kernels.stamp.sources_stamp`)."""
+    kernel's with pipeline/rasterize.py, pipeline/ops.py and
+    pipeline/texture.py (`softras.kernels.stamp.sources_stamp`)."""
     from pathlib import Path
 
     from softras.kernels import exact as k_exact
@@ -147,7 +147,7 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     exact_key = [cell.cell_contents for cell in k_exact._DRAW.py_func.__closure__]
     assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize)
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize)]
-    assert exact_key == [stamp.sources_stamp(rasterize, ops)]
+    assert exact_key == [stamp.sources_stamp(rasterize, ops, texture)]
     read_bytes = Path.read_bytes
     for module, modules in ((ops, (ops, texture, rasterize)), (texture, (ops, texture, rasterize)),
                             (rasterize, (ops, texture, rasterize)), (lines, (lines, ops, rasterize)),

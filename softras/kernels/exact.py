@@ -2,11 +2,13 @@
 
 `softras.pipeline.render` in ``precision="exact"`` shades a draw's fragments
 as numpy arrays, ~300 bytes and a few dozen array passes a fragment.  Here
-an untextured triangle draw (unlit, flat, Gouraud or Phong; alpha test,
-every depth function and blend equation) is rasterized, shaded and applied
-by one parallel kernel (`_draw`); its vertex, clip and set-up stages are the
-stages' own functions (`softras.pipeline.render.set_up_draw`), and every
-other draw (lines, textures, normal and bump maps) is the stages'
+a triangle draw (unlit, flat, Gouraud or Phong; textured with the GL
+filters, isotropic; alpha test, every depth function and blend equation)
+is rasterized, shaded and applied by one parallel kernel (`_draw`); its
+vertex, clip and set-up stages are the stages' own functions
+(`softras.pipeline.render.set_up_draw`), and every other draw (lines,
+normal and bump maps, anisotropic filtering, the filters of
+`softras.pipeline.texture_beyond`, texture bounds) is the stages'
 (`softras.pipeline.render.draw_lines`, `draw_triangles`) on the same
 float64 buffers.  The bytes are the stages' (tests/test_exact_path.py):
 
@@ -17,6 +19,8 @@ float64 buffers.  The bytes are the stages' (tests/test_exact_path.py):
   `interpolate` (`_mix`), `depth_at_samples` (`softras.kernels.setup._depth_slopes`), for Phong
   `softras.pipeline.render.phong_attributes` and
   `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
+  for a texture `softras.pipeline.render.uv_at_fragments`
+  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_texel`),
   `shade_unlit`, `alpha_test`, each with the stages' operations in their
   order;
 - per sample: `softras.pipeline.ops.apply_fragments` without quantizing
@@ -32,12 +36,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from softras.kernels.interpolate import Corners, _corner_colors, _mix, _weights_at
+from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _weights_at
 from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, flat_corner_colors, scene_lighting
 from softras.kernels.setup import _depth_slopes
 from softras.kernels.stamp import sources_stamp
-from softras.pipeline import ops, rasterize, render as stages, sampling, vertex
+from softras.kernels.texture import NO_TEXTURE, _bilinear_float, _linear_float, _nan_max, texture_tables
+from softras.pipeline import ops, rasterize, render as stages, sampling, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle
+from softras.pipeline.texture import wrap_index
 from softras.scene import Scene
 
 # Rows of the picture a thread draws at once.
@@ -47,12 +53,19 @@ BAND_ROWS = 16
 UNLIT, FLAT, PHONG = 0, 1, 2          # (Gouraud is lit per vertex: UNLIT of its lit vertex colours)
 
 
-def compiled(draw) -> bool:
-    """Whether `_draw` draws ``draw``: triangles without texture, normal or
-    bump map."""
+def compiled(scene: Scene, draw, inputs: stages.Pass) -> bool:
+    """Whether `_draw` draws ``draw`` in the pass ``inputs``: triangles
+    without normal or bump map, untextured or with a texture that
+    `softras.pipeline.texture.sample` filters isotropically (no
+    ``texture_filter`` or ``texture_bounds`` for it, ``max_anisotropy`` 1)."""
     material = draw.material
-    return (draw.mesh.primitive == "triangles" and material.texture is None and material.normal_map is None
-            and material.bump_map is None)
+    if draw.mesh.primitive != "triangles" or material.normal_map is not None or material.bump_map is not None:
+        return False
+    if material.texture is None:
+        return True
+    tex = scene.textures[material.texture]
+    return (inputs.texture_bounds is None and texture_beyond.filter_for(inputs.texture_filter, tex.name) is None
+            and texture.effective_anisotropy(tex.max_anisotropy, gl=False) <= 1)
 
 
 def render_samples(scene: Scene, job: stages.Job) -> np.ndarray:
@@ -68,6 +81,51 @@ def render_samples(scene: Scene, job: stages.Job) -> np.ndarray:
         scene, stages.Pass.of(job, positions), draw_triangles))
 
 
+def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
+    """`softras.pipeline.render.resolve` of an exact-precision job's
+    per-sample colours (H, W, S, 4) float64: the picture (H, W, 4), row 0 =
+    top.  An RGBA8 job's box filter by `_resolve_box` (the same bytes, in
+    parallel, without float buffers); the tent filter and rgba32f by the
+    stages."""
+    if job.precision != "exact":
+        raise ValueError("softras.kernels.exact resolves exact precision only")
+    if job.resolve_filter != "box" or not job.rgba8:
+        return stages.resolve(job, color)
+    out = np.empty(color.shape[:2] + (4,), np.uint8)
+    _resolve_box(color, out)
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _sample_mean(color, y, x, c):
+    """``color[y, x, :, c].mean()`` as `softras.pipeline.ops.resolve`'s box
+    filter takes it (``mean(axis=2, dtype=float64)``: the samples summed in
+    order, then divided by their count)."""
+    total = color[y, x, 0, c]
+    for s in range(1, color.shape[2]):
+        total += color[y, x, s, c]
+    return total / color.shape[2]
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def _resolve_box(color, out):
+    """`softras.pipeline.ops.resolve` (box filter, exact arithmetic, uint8
+    output): out[H - 1 - y, x] = `softras.pipeline.ops.unorm8_bytes` of the
+    mean of color[y, x]'s samples, ``rint(clamp(mean, 0, 1) * 255)``, NaN
+    giving 0 as numpy's conversion gives it.  color (H, W, S, 4) float64,
+    out (H, W, 4) uint8."""
+    height, width = color.shape[0], color.shape[1]
+    for y in numba.prange(height):
+        row = height - 1 - y
+        for x in range(width):
+            for c in range(4):
+                mean = _sample_mean(color, y, x, c)
+                if mean != mean:
+                    out[row, x, c] = 0
+                else:
+                    out[row, x, c] = np.uint8(np.rint(min(max(mean, 0.0), 1.0) * 255.0))
+
+
 def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.ndarray) -> None:
     """`softras.pipeline.render.draw_triangles` in exact precision: a
     `compiled` draw by the stages' set-up, then `_draw`; any other by the
@@ -75,7 +133,7 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
     (`softras.pipeline.render.corner_values`); Gouraud's vertex lighting and
     flat shading's face colours are the compiled ones of
     `softras.kernels.light` (the same bits)."""
-    if not compiled(draw):
+    if not compiled(scene, draw, inputs):
         stages.draw_triangles(scene, draw, inputs, color, depth)
         return
     clipped, tris = stages.set_up_draw(scene, draw, inputs)
@@ -95,13 +153,127 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
         normals = vertex.world_normals(mesh.normals, draw.world, unit=False)
         lit = np.concatenate([corners(world), corners(normals)], axis=2)           # (T', 3, 6)
         lights, lighting = scene_lighting(scene, material)
+    uv, (sampler, texels) = np.zeros((1, 3, 2)), NO_TEXTURE
+    if material.texture is not None:
+        uv = corners(mesh.uvs)                                         # (T', 3, 2), float64 as given
+        sampler, texels = texture_tables(texture.prepare(scene.textures[material.texture]), False)
     cutoff = material.alpha_cutoff
     c = np.ascontiguousarray
     _DRAW(c(tris.window), c(tris.inv_w), c(tris.edge_a), c(tris.edge_b), c(tris.edge_x0), c(tris.edge_y0),
           c(tris.edge_inclusive), c(tris.bbox), c(inputs.offsets, np.float64), float(inputs.unit),
-          c(inputs.positions, np.float64), shading, c(colors), c(lit), c(lights), tuple(lighting), color, depth,
+          c(inputs.positions, np.float64), shading, c(colors), c(lit), c(lights), tuple(lighting),
+          material.texture is not None, c(uv), sampler, texels.bytes, texels.levels, color, depth,
           ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
-          cutoff is not None, float(cutoff or 0.0), BAND_ROWS)
+          cutoff is not None, float(cutoff or 0.0), BAND_ROWS, numba.get_num_threads())
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _st_derivatives(c, u, v, px, py):
+    """`softras.pipeline.interpolate.analytic_derivatives` of (s, t) at
+    window point (px, py) of the triangle with `Corners` c and corner
+    coordinates u, v (3-tuples), same operations in the same order: the
+    exact derivatives (ds/dx, dt/dx, ds/dy, dt/dy) in (s, t) per window
+    pixel."""
+    lam = _barycentric(c, px, py)
+    iw = c.inv_w
+    q = (lam[0] * iw[0], lam[1] * iw[1], lam[2] * iw[2])
+    big_q = q[0] + q[1] + q[2]
+    s, t = _mix(q, u) / big_q, _mix(q, v) / big_q
+    dsdx, dtdx = _step_derivative(c, u, v, lam, s, t, big_q, px + 1.0, py + 0.0)
+    dsdy, dtdy = _step_derivative(c, u, v, lam, s, t, big_q, px + 0.0, py + 1.0)
+    return dsdx, dtdx, dsdy, dtdy
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _step_derivative(c, u, v, lam, s, t, big_q, px, py):
+    """One step of `_st_derivatives`: the barycentrics' change from ``lam``
+    to window point (px, py) (affine: exact for a one-pixel step), and the
+    derivatives (ds, dt) of the quotient ``sum q_i a_i / Q``."""
+    moved = _barycentric(c, px, py)
+    iw = c.inv_w
+    dq = ((moved[0] - lam[0]) * iw[0], (moved[1] - lam[1]) * iw[1], (moved[2] - lam[2]) * iw[2])
+    dq_sum = dq[0] + dq[1] + dq[2]
+    return (_mix(dq, u) - s * dq_sum) / big_q, (_mix(dq, v) - t * dq_sum) / big_q
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _levels(rho2, last, mip):
+    """`softras.pipeline.texture.choose_levels` in exact precision, from
+    rho^2 in level-0 texels^2; mip as `softras.kernels.texture.Sampler`'s
+    (0 none, 1 mipmap_nearest, 2 mipmap_linear), ``last`` the last level.
+    Returns (magnified, level0, level1, frac of level1)."""
+    magnified = not rho2 > 1.0                     # lambda <= 0 (NaN: magnified)
+    if mip == 0:
+        return magnified, 0, 0, 0.0
+    lod = 0.5 * np.log2(rho2)
+    if lod != lod:
+        lod = -np.inf
+    if mip == 1:                                   # ceil(lambda + 1/2) - 1 for lambda > 1/2, else 0
+        level = np.ceil(lod + 0.5) - 1.0 if lod > 0.5 else 0.0
+        level = np.int64(min(max(level, 0.0), float(last)))
+        return magnified, level, level, 0.0
+    if np.isfinite(lod):
+        ipart = np.floor(lod)
+        frac = lod - ipart
+    else:
+        ipart = float(last) if lod > 0 else -1.0
+        frac = 0.0
+    # (Below level 0 or from the last level on, both levels are one and the
+    # same, and `_texel` does not blend: the stages' frac of 0 there is not needed.)
+    level = np.int64(ipart)
+    return magnified, min(max(level, 0), last), min(max(level + 1, 0), last), frac
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _filter_level(texels, base, lw, lh, s, t, linear, wrap_s, wrap_t):
+    """`softras.pipeline.texture.filter_level` in exact precision on the
+    level of lw x lh texels from byte ``base`` of ``texels`` (the mip
+    chain's bytes, RGBA8 premultiplied): nearest (``floor(s W)``, wrapped)
+    or the float bilinear filter.  Returns the four channels on the 0..255
+    scale, float64."""
+    if not linear:
+        i = wrap_index(np.int64(np.floor(s * lw)), lw, wrap_s)
+        j = wrap_index(np.int64(np.floor(t * lh)), lh, wrap_t)
+        at = base + (j * lw + i) * 4
+        return (np.float64(texels[at]), np.float64(texels[at + 1]), np.float64(texels[at + 2]),
+                np.float64(texels[at + 3]))
+    i0, i1, a = _linear_float(s, lw, wrap_s)
+    j0, j1, b = _linear_float(t, lh, wrap_t)
+    at00, at10 = base + (j0 * lw + i0) * 4, base + (j0 * lw + i1) * 4
+    at01, at11 = base + (j1 * lw + i0) * 4, base + (j1 * lw + i1) * 4
+    return (_bilinear_float(a, b, np.float64(texels[at00]), np.float64(texels[at10]), np.float64(texels[at01]),
+                            np.float64(texels[at11])),
+            _bilinear_float(a, b, np.float64(texels[at00 + 1]), np.float64(texels[at10 + 1]),
+                            np.float64(texels[at01 + 1]), np.float64(texels[at11 + 1])),
+            _bilinear_float(a, b, np.float64(texels[at00 + 2]), np.float64(texels[at10 + 2]),
+                            np.float64(texels[at01 + 2]), np.float64(texels[at11 + 2])),
+            _bilinear_float(a, b, np.float64(texels[at00 + 3]), np.float64(texels[at10 + 3]),
+                            np.float64(texels[at01 + 3]), np.float64(texels[at11 + 3])))
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
+    """`softras.pipeline.texture.sample` in exact precision, isotropic, at
+    (s, t) with the derivatives of `_st_derivatives`: sampler, texels (the
+    mip chain's bytes) and table (L, 3) (byte offset, width, height per
+    level) as `softras.kernels.texture.texture_tables` gives them.  The
+    level-0 footprint rho^2 (`texel_derivatives`, `rho_squared`), the levels
+    (`_levels`), the min or mag filter on one or two levels and their blend
+    ``c0 + f (c1 - c0)``.  Returns premultiplied (r, g, b, a) in [0, 1]."""
+    width, height = table[0, 1], table[0, 2]
+    du_s, du_t = dsdx * width, dtdx * height
+    dv_s, dv_t = dsdy * width, dtdy * height
+    rho2 = _nan_max(du_s * du_s + du_t * du_t, dv_s * dv_s + dv_t * dv_t)
+    magnified, level0, level1, frac = _levels(rho2, sampler.levels - 1, sampler.mip)
+    linear = (sampler.mag_filter if magnified else sampler.min_filter) == 1
+    level = 0 if magnified else level0
+    r, g, b, a = _filter_level(texels, table[level, 0], table[level, 1], table[level, 2], s, t, linear,
+                               sampler.wrap_s, sampler.wrap_t)
+    if not magnified and level1 != level0 and frac > 0:
+        r1, g1, b1, a1 = _filter_level(texels, table[level1, 0], table[level1, 1], table[level1, 2], s, t, linear,
+                                       sampler.wrap_s, sampler.wrap_t)
+        r, g, b, a = r + frac * (r1 - r), g + frac * (g1 - g), b + frac * (b1 - b), a + frac * (a1 - a)
+    return r / 255.0, g / 255.0, b / 255.0, a / 255.0
 
 
 def _make_draw(sources: str):
@@ -110,8 +282,8 @@ def _make_draw(sources: str):
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def _draw(window, inv_w, edge_a, edge_b, edge_x0, edge_y0, inclusive, bbox, offsets, unit, positions, shading,
-              colors, lit, lights, lighting, color, depth, depth_func, depth_write, blend, alpha_test, cutoff,
-              band_rows):
+              colors, lit, lights, lighting, textured, uv, sampler, texels, table, color, depth, depth_func,
+              depth_write, blend, alpha_test, cutoff, band_rows, n_threads):
         """One `compiled` triangle draw into the float64 buffers color (H, W,
         S, 4) and depth (H, W, S), in bands of ``band_rows`` rows in parallel.
 
@@ -123,7 +295,10 @@ def _make_draw(sources: str):
         (T', 3, 4) straight corner colours (FLAT: the face's at corner 0, zeros
         at the others, `softras.kernels.light.flat_corner_colors`);
         lit (T', 3, 6) corner world positions and normals (PHONG); lights and
-        lighting: `softras.kernels.light.scene_lighting`; the depth function,
+        lighting: `softras.kernels.light.scene_lighting`; whether textured,
+        uv (T', 3, 2) the corners' (s, t), and the texture's sampler, texels
+        and level table (`softras.kernels.texture.texture_tables`, `_texel`);
+        the depth function,
         depth write, blend code, and whether the alpha test with ``cutoff``
         applies.  Fragments outside the triangle's box are never made; each
         covered pixel is shaded once (at its centre) and applied per covered
@@ -134,65 +309,75 @@ def _make_draw(sources: str):
         n_tris = window.shape[0]
         n_bands = (height + band_rows - 1) // band_rows
         write_z = depth_write and depth_func != 0
-        for band in numba.prange(n_bands):
-            top = band * band_rows
-            bottom = min(top + band_rows, height) - 1
+        for thread in numba.prange(n_threads):
             out_x = np.empty(band_rows * width, np.int32)
             out_y = np.empty(band_rows * width, np.int32)
             out_mask = np.empty(band_rows * width, np.uint32)
             box = np.empty(4, np.int64)
             src = np.empty(4)
-            out = np.empty(4)
-            for t in range(n_tris):
-                box[0], box[1] = bbox[t, 0], bbox[t, 1]
-                box[2], box[3] = max(bbox[t, 2], top), min(bbox[t, 3], bottom)
-                if box[2] > box[3]:
-                    continue
-                k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets, unit,
-                                     out_x, out_y, out_mask, 0, True)
-                # The triangle's values as scalars: corners, depth plane, corner colours,
-                # and for Phong its corners' world positions and normals.
-                corners = Corners((window[t, 0, 0], window[t, 1, 0], window[t, 2, 0]),
-                                  (window[t, 0, 1], window[t, 1, 1], window[t, 2, 1]),
-                                  (inv_w[t, 0], inv_w[t, 1], inv_w[t, 2]))
-                x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
-                dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
-                cc = _corner_colors(colors, t)
-                position = normal = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-                if shading == PHONG:
-                    position = ((lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0]), (lit[t, 0, 1], lit[t, 1, 1], lit[t, 2, 1]),
-                                (lit[t, 0, 2], lit[t, 1, 2], lit[t, 2, 2]))
-                    normal = ((lit[t, 0, 3], lit[t, 1, 3], lit[t, 2, 3]), (lit[t, 0, 4], lit[t, 1, 4], lit[t, 2, 4]),
-                              (lit[t, 0, 5], lit[t, 1, 5], lit[t, 2, 5]))
-                for f in range(k):
-                    px, py, mask = out_x[f], out_y[f], out_mask[f]
-                    # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
-                    w = (1.0, 0.0, 0.0) if shading == FLAT else _weights_at(corners, px + 0.5, py + 0.5)
-                    r, g, b, a = _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a)
-                    if shading == PHONG:
-                        nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
-                        r, g, b = _lit_point(r, g, b, _mix(w, position[0]), _mix(w, position[1]), _mix(w, position[2]),
-                                             nx, ny, nz, lights, lighting)
-                    # `softras.pipeline.fragment.shade_unlit`: premultiplied (the
-                    # material colour it multiplies by is ones: the values stay).
-                    src[0], src[1], src[2], src[3] = r * a, g * a, b * a, a
-                    if alpha_test and a < cutoff:       # (`softras.pipeline.fragment.alpha_test`: NaN kept)
+            for band in range(thread, n_bands, n_threads):
+                top = band * band_rows
+                bottom = min(top + band_rows, height) - 1
+                for t in range(n_tris):
+                    box[0], box[1] = bbox[t, 0], bbox[t, 1]
+                    box[2], box[3] = max(bbox[t, 2], top), min(bbox[t, 3], bottom)
+                    if box[2] > box[3]:
                         continue
-                    for s in range(n_samples):
-                        if not (mask >> s) & 1:
+                    k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets, unit,
+                                         out_x, out_y, out_mask, 0, True)
+                    # The triangle's values as scalars: corners, depth plane, corner colours,
+                    # and for Phong its corners' world positions and normals.
+                    corners = Corners((window[t, 0, 0], window[t, 1, 0], window[t, 2, 0]),
+                                      (window[t, 0, 1], window[t, 1, 1], window[t, 2, 1]),
+                                      (inv_w[t, 0], inv_w[t, 1], inv_w[t, 2]))
+                    x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
+                    dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
+                    cc = _corner_colors(colors, t)
+                    position = normal = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+                    if shading == PHONG:
+                        position = ((lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0]), (lit[t, 0, 1], lit[t, 1, 1], lit[t, 2, 1]),
+                                    (lit[t, 0, 2], lit[t, 1, 2], lit[t, 2, 2]))
+                        normal = ((lit[t, 0, 3], lit[t, 1, 3], lit[t, 2, 3]), (lit[t, 0, 4], lit[t, 1, 4], lit[t, 2, 4]),
+                                  (lit[t, 0, 5], lit[t, 1, 5], lit[t, 2, 5]))
+                    u = v = (0.0, 0.0, 0.0)
+                    if textured:
+                        u, v = (uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]), (uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1])
+                    for f in range(k):
+                        px, py, mask = out_x[f], out_y[f], out_mask[f]
+                        # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
+                        w = (1.0, 0.0, 0.0) if shading == FLAT else _weights_at(corners, px + 0.5, py + 0.5)
+                        r, g, b, a = _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a)
+                        if shading == PHONG:
+                            nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
+                            r, g, b = _lit_point(r, g, b, _mix(w, position[0]), _mix(w, position[1]), _mix(w, position[2]),
+                                                 nx, ny, nz, lights, lighting)
+                        # `softras.pipeline.fragment.shade_unlit`: premultiplied (the
+                        # material colour it multiplies by is ones: the values stay),
+                        # times the texel.
+                        src[0], src[1], src[2], src[3] = r * a, g * a, b * a, a
+                        if textured:
+                            cx, cy = px + 0.5, py + 0.5
+                            wp = _weights_at(corners, cx, cy) if shading == FLAT else w
+                            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, cx, cy)
+                            texel = _texel(sampler, texels, table, _mix(wp, u), _mix(wp, v), dsdx, dtdx, dsdy, dtdy)
+                            for ch in range(4):
+                                src[ch] = src[ch] * texel[ch]
+                        if alpha_test and src[3] < cutoff:  # (`softras.pipeline.fragment.alpha_test`: NaN kept)
                             continue
-                        # `softras.pipeline.interpolate.depth_at_samples`, from corner 0
-                        z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
-                        if not ops._depth_pass(depth_func, z, depth[py, px, s]):
-                            continue
-                        if write_z:
-                            depth[py, px, s] = z
-                        ops._blend(blend, src, color[py, px, s], out)
-                        for ch in range(4):
-                            color[py, px, s, ch] = out[ch]
+                        for s in range(n_samples):
+                            if not (mask >> s) & 1:
+                                continue
+                            # `softras.pipeline.interpolate.depth_at_samples`, from corner 0
+                            z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
+                            if not ops._depth_pass(depth_func, z, depth[py, px, s]):
+                                continue
+                            if write_z:
+                                depth[py, px, s] = z
+                            for ch in range(4):
+                                color[py, px, s, ch] = ops._blend(blend, src[ch], color[py, px, s, ch], src[3])
 
     return _draw
 
 
 # The kernel, keyed on the kernels' sources and the stages' it calls.
-_DRAW = _make_draw(sources_stamp(rasterize, ops))
+_DRAW = _make_draw(sources_stamp(rasterize, ops, texture))

@@ -80,28 +80,26 @@ def _depth_pass(func, z, stored):
     return z >= stored
 
 
-@numba.njit(cache=True)
-def _blend(mode, src, dst, out):
-    for ch in range(4):
-        s = src[ch]
-        d = dst[ch]
-        if mode == 0:
-            v = s
-        elif mode == 1:
-            v = s + (1.0 - src[3]) * d
-        elif mode == 2:
-            v = s * src[3] + (1.0 - src[3]) * d
-        elif mode == 3:
-            v = s + d
-        elif mode == 4:
-            v = s - d
-        elif mode == 5:
-            v = d - s
-        elif mode == 6:
-            v = min(s, d)
-        else:
-            v = max(s, d)
-        out[ch] = v
+@numba.njit(cache=True, inline="always")
+def _blend(mode, s, d, alpha):
+    """The float blend of one channel (an rgba32f or exact buffer, unclamped):
+    fragment value s (premultiplied) over stored value d, the fragment's
+    alpha ``alpha``; mode : BLEND_MODES code."""
+    if mode == 0:
+        return s
+    if mode == 1:
+        return s + (1.0 - alpha) * d
+    if mode == 2:
+        return s * alpha + (1.0 - alpha) * d
+    if mode == 3:
+        return s + d
+    if mode == 4:
+        return s - d
+    if mode == 5:
+        return d - s
+    if mode == 6:
+        return min(s, d)
+    return max(s, d)
 
 
 @numba.njit(cache=True)
@@ -188,7 +186,6 @@ def apply_fragments(x, y, mask, z, rgba, color, depth, depth_func, depth_write, 
     """
     n_samples = depth.shape[2]
     src = np.empty(4)
-    out = np.empty(4)
     src8 = np.empty(4, np.int64)
     dst8 = np.empty(4, np.int64)
     out8 = np.empty(4, np.int64)
@@ -214,9 +211,8 @@ def apply_fragments(x, y, mask, z, rgba, color, depth, depth_func, depth_write, 
                 for ch in range(4):
                     color[py, px, s, ch] = out8[ch] / 255.0
             else:
-                _blend(blend, src, color[py, px, s], out)
                 for ch in range(4):
-                    color[py, px, s, ch] = out[ch]
+                    color[py, px, s, ch] = _blend(blend, src[ch], color[py, px, s, ch], src[3])
 
 
 RESOLVE_FILTERS = ("box", "tent")
