@@ -138,12 +138,24 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
 
     # gl: the crossing triangles are clipped by a compiled kernel (bit for bit
     # `clip_polygon`, see tests/stages/test_clip.py), in two passes (count,
-    # then write) so the output is exact-sized and in draw order.
+    # then write) so the output is exact-sized.
     cross = np.nonzero(crossing)[0]
     plane_mask = tri_out[cross].any(axis=1)                     # (C, 6) planes to clip against
     corners = np.ascontiguousarray(clip[indices[cross]])        # (C, 3, 4)
     fan_counts = _clip_gl_kernel(corners, plane_mask, np.zeros(len(cross), np.int64),
                                  np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
+    cross_clip = np.empty((int(fan_counts.sum()), 3, 4))
+    cross_weights = np.empty((len(cross_clip), 3, 3))
+    _clip_gl_kernel(corners, plane_mask, fan_counts, cross_clip, cross_weights, True)
+    return _in_draw_order(clip, indices, keep, cross, fan_counts, cross_clip, cross_weights)
+
+
+def _in_draw_order(clip, indices, keep, cross, fan_counts, cross_clip, cross_weights) -> ClippedTriangles:
+    """The clipped triangles in draw order: each kept triangle (keep (M,)
+    bool) as it is, each crossing one (cross (C,) their indices) replaced by
+    its fan of fan_counts (C,) triangles, the fans' corners and weights
+    cross_clip (sum, 3, 4) and cross_weights (sum, 3, 3) one after another."""
+    identity = np.eye(3)
     counts = keep.astype(np.int64)
     counts[cross] = fan_counts
     starts = np.zeros(len(counts), np.int64)
@@ -155,9 +167,6 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
     kept = np.nonzero(keep)[0]
     out_clip[starts[kept]] = clip[indices[kept]]
     out_weights[starts[kept]] = identity
-    cross_clip = np.empty((int(fan_counts.sum()), 3, 4))
-    cross_weights = np.empty((len(cross_clip), 3, 3))
-    _clip_gl_kernel(corners, plane_mask, fan_counts, cross_clip, cross_weights, True)
     slots = (np.repeat(starts[cross] - np.cumsum(fan_counts) + fan_counts, fan_counts)
              + np.arange(len(cross_clip)))
     out_clip[slots] = cross_clip
@@ -166,30 +175,22 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
 
 
 def _clip_with_polygons(clip, indices, keep, crossing, tri_out, planes, precision) -> ClippedTriangles:
-    """The reference loop: `clip_polygon` per crossing triangle, in draw order."""
+    """The reference loop: `clip_polygon` per crossing triangle, its polygon
+    fanned, in draw order."""
     identity = np.eye(3)
-    out_clip, out_source, out_weights = [], [], []
-    for t in np.nonzero(keep | crossing)[0]:
-        corners = clip[indices[t]]
-        if keep[t]:
-            out_clip.append(corners)
-            out_source.append(t)
-            out_weights.append(identity)
-            continue
+    cross = np.nonzero(crossing)[0]
+    fan_counts = np.zeros(len(cross), np.int64)
+    fans_clip, fans_weights = [np.zeros((0, 3, 4))], [np.zeros((0, 3, 3))]
+    for i, t in enumerate(cross):
         mask = tri_out[t].any(axis=0)
-        polygon = clip_polygon(corners, identity, planes[mask], precision)
-        for k in range(2, len(polygon[0])):
-            fan = [k - 1, k, 0]
-            out_clip.append(polygon[0][fan])
-            out_source.append(t)
-            out_weights.append(polygon[1][fan])
-    if not out_source:
-        return ClippedTriangles(np.zeros((0, 3, 4)), np.zeros(0, np.int64), np.zeros((0, 3, 3)))
-    return ClippedTriangles(
-        clip=np.array(out_clip, dtype=np.float64),
-        source=np.array(out_source, dtype=np.int64),
-        weights=np.array(out_weights, dtype=np.float64),
-    )
+        points, weights = clip_polygon(clip[indices[t]], identity, planes[mask], precision)
+        fan = [[k - 1, k, 0] for k in range(2, len(points))]
+        fan_counts[i] = len(fan)
+        if fan:
+            fans_clip.append(points[fan])
+            fans_weights.append(weights[fan])
+    return _in_draw_order(clip, indices, keep, cross, fan_counts, np.concatenate(fans_clip),
+                          np.concatenate(fans_weights))
 
 
 @numba.njit(cache=True, inline="always")
