@@ -219,3 +219,52 @@ def test_the_compiled_resolve_leaves_the_tent_and_rgba32f_to_the_stages():
         job = exact_job(scene, **options)
         out, expected = exact.resolve(job, color), stages.resolve(job, color)
         assert out.dtype == expected.dtype and np.array_equal(out, expected), options
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_compiled_setup_gives_the_stages_triangles(seed):
+    """`exact.setup_triangles` = `softras.pipeline.setup.setup_triangles`
+    (exact) field for field, on random clip-space triangles (w from 1e-300
+    to 10: window coordinates up to infinity, areas that overflow or are
+    NaN, degenerate triangles) with every cull mode, front face, tie rule
+    and sample offsets of 1, 4 and 16 samples."""
+    from softras.pipeline import setup
+    rng = np.random.default_rng(seed)
+    clip = rng.uniform(-3, 3, (3000, 3, 4))
+    clip[..., 3] = 10.0 ** rng.uniform(-3, 1, (3000, 3))
+    clip[::50, :, 3] = 1e-300
+    clip[1::40, 1] = clip[1::40, 0]                          # degenerate: two corners equal
+    clip[2::30, :, :2] = np.round(clip[2::30, :, :2], 1)     # shared coordinates, edges on samples
+    for cull in ("none", "back", "front"):
+        for front_face in ("ccw", "cw"):
+            for tie_rule in setup.TIE_RULES:
+                for samples in (1, 4, 16):
+                    offsets, unit = setup.sample_offsets(sampling.sample_positions(samples, "halton"), "exact")
+                    options = dict(cull=cull, offsets=offsets, unit=unit, tie_rule=tie_rule, front_face=front_face)
+                    with np.errstate(all="ignore"):
+                        expected = setup.setup_triangles(clip, 61, 47, precision="exact", **options)
+                        got = exact.setup_triangles(clip, 61, 47, **options)
+                    for name in expected.__dataclass_fields__:
+                        a, b = getattr(expected, name), getattr(got, name)
+                        assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), (name, options)
+
+
+def test_the_compiled_corner_values_give_the_stages_values():
+    """`exact.corner_values` = `softras.pipeline.render.corner_values`
+    (numpy's einsum, summed from 0: -0 corner values come back +0) on
+    clipped random triangles, values with -0, infinities and NaN."""
+    scene = softras.load_scene(random_scene(3))
+    job = exact_job(scene, samples=4)
+    inputs = stages.Pass.of(job, job.positions)
+    rng = np.random.default_rng(3)
+    for draw in scene.draws:
+        clipped, tris = exact.set_up_draw(scene, draw, inputs)
+        values = rng.normal(size=(len(draw.mesh.positions), 5))
+        values[::5] = -0.0
+        values[1::7, 1] = np.inf
+        values[2::11, 2] = np.nan
+        with np.errstate(invalid="ignore"):
+            expected = stages.corner_values(clipped, tris, draw.mesh)[1](values)
+            got = exact.corner_values(clipped, tris, draw.mesh)(values)
+        assert np.array_equal(expected, got, equal_nan=True)
+        assert np.array_equal(np.signbit(expected), np.signbit(got))

@@ -33,15 +33,18 @@ draw order, as the stages apply them.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numba
 import numpy as np
 
 from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _weights_at
 from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, flat_corner_colors, scene_lighting
-from softras.kernels.setup import _depth_slopes
+from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _bilinear_float, _linear_float, _nan_max, texture_tables
-from softras.pipeline import ops, rasterize, render as stages, sampling, texture, texture_beyond, vertex
+from softras.pipeline import clip as clip_stage
+from softras.pipeline import ops, rasterize, render as stages, sampling, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle
 from softras.pipeline.texture import wrap_index
 from softras.scene import Scene
@@ -79,6 +82,156 @@ def render_samples(scene: Scene, job: stages.Job) -> np.ndarray:
     stages.check_sample_memory(scene, len(job.positions), stages.SAMPLE_BYTES)
     return sampling.in_passes(job.positions, lambda positions: stages.render_pass(
         scene, stages.Pass.of(job, positions), draw_triangles))
+
+
+def set_up_draw(scene: Scene, draw, inputs: stages.Pass):
+    """`softras.pipeline.render.set_up_draw` in exact precision: the stages'
+    vertex and clip stages, then `setup_triangles`."""
+    clipped = clip_stage.clip_triangles(stages.draw_clip_positions(scene, draw, "exact"), draw.mesh.indices,
+                                        precision="exact", policy=inputs.policy, width=scene.width,
+                                        height=scene.height)
+    return clipped, setup_triangles(clipped.clip, scene.width, scene.height, cull=draw.cull,
+                                    offsets=inputs.offsets, unit=inputs.unit, tie_rule=inputs.tie_rule,
+                                    front_face=scene.front_face)
+
+
+def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str, offsets: np.ndarray, unit: float,
+                    tie_rule: str, front_face: str) -> setup.TriangleSetup:
+    """`softras.pipeline.setup.setup_triangles` in exact precision, by one
+    compiled pass over the clipped triangles (`_setup`): the same
+    `softras.pipeline.setup.TriangleSetup`.  clip (T, 3, 4) float64."""
+    n = len(clip)
+    out = setup.TriangleSetup(
+        triangle=np.empty(n, np.int64), corner=np.empty((n, 3), np.int64), window=np.empty((n, 3, 3)),
+        inv_w=np.empty((n, 3)), raster=np.empty((n, 3, 2)), edge_a=np.empty((n, 3)), edge_b=np.empty((n, 3)),
+        edge_x0=np.empty((n, 3)), edge_y0=np.empty((n, 3)), edge_inclusive=np.empty((n, 3), bool),
+        bbox=np.empty((n, 4), np.int64), front_facing=np.empty(n, bool))
+    offsets = np.asarray(offsets, np.float64)
+    box = (offsets[:, 0].max(), offsets[:, 0].min(), offsets[:, 1].max(), offsets[:, 1].min())
+    fields = [getattr(out, field.name) for field in dataclasses.fields(out)]
+    count = _setup(np.ascontiguousarray(clip, np.float64), width, height,
+                   CULL_CODES[setup.window_cull(cull, front_face)], front_face == "ccw", box, float(unit),
+                   setup.TIE_RULES[tie_rule], *fields)
+    return setup.TriangleSetup(*(field[:count] for field in fields))
+
+
+def corner_values(clipped, tris: setup.TriangleSetup, mesh):
+    """`softras.pipeline.render.corner_values`' corners function, compiled
+    (`_corners`): per-vertex values (N, K) -> (T', 3, K) at the set-up
+    triangles' corners."""
+    weights = np.ascontiguousarray(clipped.weights[tris.triangle])             # (T', 3, 3)
+    source = np.ascontiguousarray(mesh.indices[clipped.source[tris.triangle]])  # (T', 3)
+    corner = np.ascontiguousarray(tris.corner)
+
+    def corners(values: np.ndarray) -> np.ndarray:
+        out = np.empty((len(source), 3, values.shape[1]))
+        _corners(weights, corner, source, np.ascontiguousarray(values, np.float64), out)
+        return out
+
+    return corners
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _corners(weights, corner, source, values, out):
+    """out[t, k] = the clip weights of set-up corner k (row corner[t, k] of
+    weights[t]) applied to the source vertices' values, as numpy's einsum
+    ``tkj,tjc->tkc`` sums them: from 0, j = 0, 1, 2 in order."""
+    for t in range(out.shape[0]):
+        for k in range(3):
+            row = corner[t, k]
+            for c in range(out.shape[2]):
+                total = 0.0
+                for j in range(3):
+                    total += weights[t, row, j] * values[source[t, j], c]
+                out[t, k, c] = total
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _nan_min3(a, b, c):
+    """np.min of three values: NaN if any is NaN."""
+    if a != a or b != b or c != c:
+        return np.nan
+    return min(a, b, c)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _nan_max3(a, b, c):
+    """np.max of three values: NaN if any is NaN."""
+    if a != a or b != b or c != c:
+        return np.nan
+    return max(a, b, c)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _box_edge(v, lo, hi):
+    """One bounding-box bound of `softras.pipeline.setup.setup_triangles`
+    after its rounding: ``np.clip(v, lo, hi).astype(np.int64)`` (NaN gives
+    -2^63, as numpy's conversion does)."""
+    if v != v:
+        return np.int64(-9223372036854775808)
+    return np.int64(min(max(v, lo), hi))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _setup(clip, width, height, cull, front_ccw, box, unit, tie_rule, triangle, corner, window, inv_w, raster,
+           edge_a, edge_b, edge_x0, edge_y0, inclusive, bbox, front):
+    """`softras.pipeline.setup.setup_triangles` (exact precision) of the
+    clipped triangles clip (T, 3, 4), with the same operations in the same
+    order: the viewport transform ``(c / w) W/2 + W/2``, twice the signed
+    area, culling (cull: CULL_CODES, counter-clockwise terms), the corners
+    made counter-clockwise, the edge equations (`edge_equations`), the tie
+    rule's inclusive edges, the pixel box from the sample offsets' extremes
+    ``box`` (max x, min x, max y, min y) and ``unit``.  Writes the visible
+    triangles' rows, in order, into the `TriangleSetup`'s arrays (T rows
+    each) and returns their count."""
+    scale = (width / 2.0, height / 2.0, 0.5)
+    sign_a, sign_b = tie_rule
+    wx, wy, wz, ww = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    n = 0
+    for t in range(clip.shape[0]):
+        for k in range(3):
+            oow = 1.0 / clip[t, k, 3]
+            ww[k] = oow
+            wx[k] = clip[t, k, 0] * oow * scale[0] + scale[0]
+            wy[k] = clip[t, k, 1] * oow * scale[1] + scale[1]
+            wz[k] = clip[t, k, 2] * oow * scale[2] + scale[2]
+        area = (wx[1] - wx[0]) * (wy[2] - wy[0]) - (wx[2] - wx[0]) * (wy[1] - wy[0])
+        ccw = area > 0
+        if not area != 0 or (cull == 1 and not ccw) or (cull == 2 and ccw):
+            continue
+        order = (0, 1, 2) if ccw else (1, 0, 2)        # corners 0 and 1 swapped: counter-clockwise
+        xs = (wx[order[0]], wx[order[1]], wx[order[2]])
+        ys = (wy[order[0]], wy[order[1]], wy[order[2]])
+        x0 = np.ceil((_nan_min3(xs[0], xs[1], xs[2]) - box[0]) / unit)
+        x1 = np.floor((_nan_max3(xs[0], xs[1], xs[2]) - box[1]) / unit)
+        y0 = np.ceil((_nan_min3(ys[0], ys[1], ys[2]) - box[2]) / unit)
+        y1 = np.floor((_nan_max3(ys[0], ys[1], ys[2]) - box[3]) / unit)
+        bx0 = max(_box_edge(x0, -1.0, float(width)), 0)
+        bx1 = min(_box_edge(x1, -1.0, float(width)), width - 1)
+        by0 = max(_box_edge(y0, -1.0, float(height)), 0)
+        by1 = min(_box_edge(y1, -1.0, float(height)), height - 1)
+        if not (bx0 <= bx1 and by0 <= by1):
+            continue
+        triangle[n] = t
+        front[n] = ccw if front_ccw else area < 0
+        bbox[n, 0], bbox[n, 1], bbox[n, 2], bbox[n, 3] = bx0, bx1, by0, by1
+        for k in range(3):
+            c = order[k]
+            corner[n, k] = c
+            window[n, k, 0], window[n, k, 1], window[n, k, 2] = wx[c], wy[c], wz[c]
+            inv_w[n, k] = ww[c]
+            raster[n, k, 0], raster[n, k, 1] = wx[c], wy[c]
+            # `softras.pipeline.setup.edge_equations`: the edge from corner k
+            # to k + 1 from its endpoints in lexicographic order.
+            ax, ay, bx, by = xs[k], ys[k], xs[(k + 1) % 3], ys[(k + 1) % 3]
+            swap = (ax > bx) | ((ax == bx) & (ay > by))
+            px, py, qx, qy = (bx, by, ax, ay) if swap else (ax, ay, bx, by)
+            sign = -1.0 if swap else 1.0
+            a, b = (py - qy) * sign, (qx - px) * sign
+            edge_a[n, k], edge_b[n, k], edge_x0[n, k], edge_y0[n, k] = a, b, px, py
+            inclusive[n, k] = (sign_a * a > 0) | ((a == 0) & (sign_b * b > 0))
+        n += 1
+    return n
 
 
 def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
@@ -136,11 +289,11 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
     if not compiled(scene, draw, inputs):
         stages.draw_triangles(scene, draw, inputs, color, depth)
         return
-    clipped, tris = stages.set_up_draw(scene, draw, inputs)
+    clipped, tris = set_up_draw(scene, draw, inputs)
     if len(tris) == 0:
         return
     mesh, material = draw.mesh, draw.material
-    _, corners = stages.corner_values(clipped, tris, mesh)
+    corners = corner_values(clipped, tris, mesh)
     base = base_colors(scene, draw)                                    # straight, Gouraud lit
     lit, lights, lighting = np.zeros((1, 3, 6)), *NO_LIGHTING[1:]
     shading = {"flat": FLAT, "phong": PHONG}.get(material.shading, UNLIT)
