@@ -224,15 +224,16 @@ def test_the_compiled_resolve_leaves_the_tent_and_rgba32f_to_the_stages():
 @pytest.mark.parametrize("seed", range(4))
 def test_the_compiled_setup_gives_the_stages_triangles(seed):
     """`exact.setup_triangles` = `softras.pipeline.setup.setup_triangles`
-    (exact) field for field, on random clip-space triangles (w from 1e-300
-    to 10: window coordinates up to infinity, areas that overflow or are
-    NaN, degenerate triangles) with every cull mode, front face, tie rule
+    (exact) field for field, on random clip-space triangles (w from the
+    smallest double to 10: window coordinates infinite or NaN, areas that
+    overflow or are NaN, degenerate triangles) with every cull mode, front face, tie rule
     and sample offsets of 1, 4 and 16 samples."""
     from softras.pipeline import setup
     rng = np.random.default_rng(seed)
     clip = rng.uniform(-3, 3, (3000, 3, 4))
     clip[..., 3] = 10.0 ** rng.uniform(-3, 1, (3000, 3))
-    clip[::50, :, 3] = 1e-300
+    clip[::50, :, 3] = 5e-324                               # 1 / w = inf: window coordinates inf
+    clip[::100, 0, 0] = 0.0                                  # ... and NaN (0 inf)
     clip[1::40, 1] = clip[1::40, 0]                          # degenerate: two corners equal
     clip[2::30, :, :2] = np.round(clip[2::30, :, :2], 1)     # shared coordinates, edges on samples
     for cull in ("none", "back", "front"):

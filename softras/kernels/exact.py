@@ -5,13 +5,16 @@ as numpy arrays, ~300 bytes and a few dozen array passes a fragment.  Here
 a triangle draw (unlit, flat, Gouraud or Phong; textured with the GL
 filters, isotropic; alpha test, every depth function and blend equation)
 is rasterized, shaded and applied by one parallel kernel (`_draw`); its
-vertex, clip and set-up stages are the stages' own functions
-(`softras.pipeline.render.set_up_draw`), and every other draw (lines,
-normal and bump maps, anisotropic filtering, the filters of
-`softras.pipeline.texture_beyond`, texture bounds) is the stages'
-(`softras.pipeline.render.draw_lines`, `draw_triangles`) on the same
-float64 buffers.  The bytes are the stages' (tests/test_exact_path.py):
+vertex and clip stages are the stages' own functions, its set-up and
+corner values compiled mirrors (`setup_triangles`, `corner_values`), and
+every other draw (lines, normal and bump maps, anisotropic filtering, the
+filters of `softras.pipeline.texture_beyond`, texture bounds) is the
+stages' (`softras.pipeline.render.draw_lines`, `draw_triangles`) on the
+same float64 buffers; `resolve` makes the picture.  The bytes are the
+stages' (tests/test_exact_path.py):
 
+- set-up: `softras.pipeline.setup.setup_triangles` (`_setup`) and the
+  einsum of `softras.pipeline.render.corner_values` (`_corners`);
 - coverage: `softras.pipeline.rasterize._raster_triangle` itself, on the
   triangle's pixel box cut to a band of rows;
 - per fragment: `softras.pipeline.interpolate.barycentric`,
@@ -24,11 +27,12 @@ float64 buffers.  The bytes are the stages' (tests/test_exact_path.py):
   `shade_unlit`, `alpha_test`, each with the stages' operations in their
   order;
 - per sample: `softras.pipeline.ops.apply_fragments` without quantizing
-  (its own `_depth_pass` and `_blend`).
+  (its own `_depth_pass` and `_blend`);
+- the picture: `softras.pipeline.ops.resolve`'s box filter (`_resolve_box`).
 
-Bands of `BAND_ROWS` rows are drawn in parallel; each walks the draw's
-triangles in order over its own rows, so every pixel sees the fragments in
-draw order, as the stages apply them.
+Bands of `BAND_ROWS` rows are drawn in parallel (thread r of n draws bands
+r, r + n, ...); each walks the draw's triangles in order over its own rows,
+so every pixel sees the fragments in draw order, as the stages apply them.
 """
 
 from __future__ import annotations
@@ -429,6 +433,13 @@ def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
     return r / 255.0, g / 255.0, b / 255.0, a / 255.0
 
 
+@numba.njit(cache=True, inline="always")
+def _triple(table, t, c):
+    """Value c of set-up triangle t's three corners in table (T', 3, K), as
+    the 3-tuple `_mix` weighs."""
+    return table[t, 0, c], table[t, 1, c], table[t, 2, c]
+
+
 def _make_draw(sources: str):
     """The exact kernel `_draw`, with the cache key ``sources``
     (`softras.kernels.stamp.sources_stamp`) as a closure variable."""
@@ -488,13 +499,11 @@ def _make_draw(sources: str):
                     cc = _corner_colors(colors, t)
                     position = normal = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
                     if shading == PHONG:
-                        position = ((lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0]), (lit[t, 0, 1], lit[t, 1, 1], lit[t, 2, 1]),
-                                    (lit[t, 0, 2], lit[t, 1, 2], lit[t, 2, 2]))
-                        normal = ((lit[t, 0, 3], lit[t, 1, 3], lit[t, 2, 3]), (lit[t, 0, 4], lit[t, 1, 4], lit[t, 2, 4]),
-                                  (lit[t, 0, 5], lit[t, 1, 5], lit[t, 2, 5]))
+                        position = (_triple(lit, t, 0), _triple(lit, t, 1), _triple(lit, t, 2))
+                        normal = (_triple(lit, t, 3), _triple(lit, t, 4), _triple(lit, t, 5))
                     u = v = (0.0, 0.0, 0.0)
                     if textured:
-                        u, v = (uv[t, 0, 0], uv[t, 1, 0], uv[t, 2, 0]), (uv[t, 0, 1], uv[t, 1, 1], uv[t, 2, 1])
+                        u, v = _triple(uv, t, 0), _triple(uv, t, 1)
                     for f in range(k):
                         px, py, mask = out_x[f], out_y[f], out_mask[f]
                         # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
@@ -502,8 +511,8 @@ def _make_draw(sources: str):
                         r, g, b, a = _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a)
                         if shading == PHONG:
                             nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
-                            r, g, b = _lit_point(r, g, b, _mix(w, position[0]), _mix(w, position[1]), _mix(w, position[2]),
-                                                 nx, ny, nz, lights, lighting)
+                            r, g, b = _lit_point(r, g, b, _mix(w, position[0]), _mix(w, position[1]),
+                                                 _mix(w, position[2]), nx, ny, nz, lights, lighting)
                         # `softras.pipeline.fragment.shade_unlit`: premultiplied (the
                         # material colour it multiplies by is ones: the values stay),
                         # times the texel.
