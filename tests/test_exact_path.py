@@ -137,11 +137,11 @@ def test_any_band_height_gives_the_same_samples(band_rows, monkeypatch):
 
 def routes(monkeypatch) -> list:
     """The list that each draw of a render appends its route to: "kernel"
-    (the stages' set-up for `exact._DRAW`), "stages" or "lines" (their
+    (`exact.set_up_draw`, for `exact._DRAW`), "stages" or "lines" (their
     per-draw functions; none of them draws)."""
     drawn = []
-    set_up = stages.set_up_draw
-    monkeypatch.setattr(stages, "set_up_draw", lambda *args: (drawn.append("kernel"), set_up(*args))[1])
+    set_up = exact.set_up_draw
+    monkeypatch.setattr(exact, "set_up_draw", lambda *args: (drawn.append("kernel"), set_up(*args))[1])
     monkeypatch.setattr(exact, "_DRAW", lambda *args: None)
     monkeypatch.setattr(stages, "draw_lines", lambda *args: drawn.append("lines"))
     monkeypatch.setattr(stages, "draw_triangles", lambda *args: drawn.append("stages"))

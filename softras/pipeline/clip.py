@@ -119,28 +119,24 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
     dist = plane_distances(clip, planes, precision)            # (N, 6)
     outside = dist < 0                                          # (N, 6)
     finite = np.isfinite(clip).all(axis=1)
+    keep, crossing = np.empty(len(indices), bool), np.empty(len(indices), bool)
+    _classify(outside, finite, np.ascontiguousarray(indices, np.int64), keep, crossing)
 
-    tri_out = outside[indices]                                  # (M, 3, 6)
-    culled = tri_out.all(axis=1).any(axis=1) | ~finite[indices].all(axis=1)
-    crossing = tri_out.any(axis=(1, 2)) & ~culled
-
-    identity = np.eye(3)
-    keep = ~culled & ~crossing
     if not crossing.any():
         kept = np.nonzero(keep)[0]
         return ClippedTriangles(
             clip=clip[indices[kept]],
             source=kept.astype(np.int64),
-            weights=np.broadcast_to(identity, (len(kept), 3, 3)).copy(),
+            weights=np.broadcast_to(np.eye(3), (len(kept), 3, 3)).copy(),
         )
+    cross = np.nonzero(crossing)[0]
+    plane_mask = outside[indices[cross]].any(axis=1)            # (C, 6) planes to clip against
     if precision != "gl" or policy != "llvmpipe":
-        return _clip_with_polygons(clip, indices, keep, crossing, tri_out, planes, precision)
+        return _clip_with_polygons(clip, indices, keep, cross, plane_mask, planes, precision)
 
     # gl: the crossing triangles are clipped by a compiled kernel (bit for bit
     # `clip_polygon`, see tests/stages/test_clip.py), in two passes (count,
     # then write) so the output is exact-sized.
-    cross = np.nonzero(crossing)[0]
-    plane_mask = tri_out[cross].any(axis=1)                     # (C, 6) planes to clip against
     corners = np.ascontiguousarray(clip[indices[cross]])        # (C, 3, 4)
     fan_counts = _clip_gl_kernel(corners, plane_mask, np.zeros(len(cross), np.int64),
                                  np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
@@ -174,16 +170,32 @@ def _in_draw_order(clip, indices, keep, cross, fan_counts, cross_clip, cross_wei
     return ClippedTriangles(out_clip, out_source, out_weights)
 
 
-def _clip_with_polygons(clip, indices, keep, crossing, tri_out, planes, precision) -> ClippedTriangles:
-    """The reference loop: `clip_polygon` per crossing triangle, its polygon
+@numba.njit(cache=True)
+def _classify(outside, finite, indices, keep, crossing):
+    """Triangle by triangle (indices (M, 3)): culled when its three corners
+    are outside one plane (outside (N, 6) bool per vertex) or one is not
+    finite (finite (N,) bool); crossing when not culled and a corner is
+    outside a plane; kept when neither.  Writes keep and crossing (M,)."""
+    for t in range(indices.shape[0]):
+        a, b, c = indices[t, 0], indices[t, 1], indices[t, 2]
+        culled = not (finite[a] and finite[b] and finite[c])
+        out = False
+        for p in range(outside.shape[1]):
+            culled |= outside[a, p] and outside[b, p] and outside[c, p]
+            out |= outside[a, p] or outside[b, p] or outside[c, p]
+        crossing[t] = out and not culled
+        keep[t] = not (culled or out)
+
+
+def _clip_with_polygons(clip, indices, keep, cross, plane_mask, planes, precision) -> ClippedTriangles:
+    """The reference loop: `clip_polygon` per crossing triangle (cross (C,)
+    their indices, plane_mask (C, 6) the planes each crosses), its polygon
     fanned, in draw order."""
     identity = np.eye(3)
-    cross = np.nonzero(crossing)[0]
     fan_counts = np.zeros(len(cross), np.int64)
     fans_clip, fans_weights = [np.zeros((0, 3, 4))], [np.zeros((0, 3, 3))]
     for i, t in enumerate(cross):
-        mask = tri_out[t].any(axis=0)
-        points, weights = clip_polygon(clip[indices[t]], identity, planes[mask], precision)
+        points, weights = clip_polygon(clip[indices[t]], identity, planes[plane_mask[i]], precision)
         fan = [[k - 1, k, 0] for k in range(2, len(points))]
         fan_counts[i] = len(fan)
         if fan:
