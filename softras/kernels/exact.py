@@ -479,6 +479,7 @@ def _make_draw(sources: str):
             out_mask = np.empty(band_rows * width, np.uint32)
             box = np.empty(4, np.int64)
             src = np.empty(4)
+            weights = np.empty((3, band_rows * width))          # the fragments' perspective weights
             for band in range(thread, n_bands, n_threads):
                 top = band * band_rows
                 bottom = min(top + band_rows, height) - 1
@@ -504,10 +505,17 @@ def _make_draw(sources: str):
                     u = v = (0.0, 0.0, 0.0)
                     if textured:
                         u, v = _triple(uv, t, 0), _triple(uv, t, 1)
+                    # The perspective weights of all k fragments first: a loop that
+                    # LLVM vectorises (the divisions four at a time).
+                    if shading != FLAT or textured:
+                        for f in range(k):
+                            w = _weights_at(corners, out_x[f] + 0.5, out_y[f] + 0.5)
+                            weights[0, f], weights[1, f], weights[2, f] = w[0], w[1], w[2]
                     for f in range(k):
                         px, py, mask = out_x[f], out_y[f], out_mask[f]
+                        wp = (weights[0, f], weights[1, f], weights[2, f])
                         # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
-                        w = (1.0, 0.0, 0.0) if shading == FLAT else _weights_at(corners, px + 0.5, py + 0.5)
+                        w = (1.0, 0.0, 0.0) if shading == FLAT else wp
                         r, g, b, a = _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a)
                         if shading == PHONG:
                             nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
@@ -518,9 +526,7 @@ def _make_draw(sources: str):
                         # times the texel.
                         src[0], src[1], src[2], src[3] = r * a, g * a, b * a, a
                         if textured:
-                            cx, cy = px + 0.5, py + 0.5
-                            wp = _weights_at(corners, cx, cy) if shading == FLAT else w
-                            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, cx, cy)
+                            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, px + 0.5, py + 0.5)
                             texel = _texel(sampler, texels, table, _mix(wp, u), _mix(wp, v), dsdx, dtdx, dsdy, dtdy)
                             for ch in range(4):
                                 src[ch] = src[ch] * texel[ch]
