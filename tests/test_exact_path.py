@@ -226,8 +226,8 @@ def test_the_compiled_setup_gives_the_stages_triangles(seed):
     """`exact.setup_triangles` = `softras.pipeline.setup.setup_triangles`
     (exact) field for field, on random clip-space triangles (w from the
     smallest double to 10: window coordinates infinite or NaN, areas that
-    overflow or are NaN, degenerate triangles) with every cull mode, front face, tie rule
-    and sample offsets of 1, 4 and 16 samples."""
+    overflow or are NaN, degenerate triangles) with every cull mode, front
+    face, tie rule and sample offsets of 1, 4 and 16 samples."""
     from softras.pipeline import setup
     rng = np.random.default_rng(seed)
     clip = rng.uniform(-3, 3, (3000, 3, 4))

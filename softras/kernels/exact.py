@@ -285,11 +285,10 @@ def _resolve_box(color, out):
 
 def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.ndarray) -> None:
     """`softras.pipeline.render.draw_triangles` in exact precision: a
-    `compiled` draw by the stages' set-up, then `_draw`; any other by the
-    stages.  The corner values are the stages'
-    (`softras.pipeline.render.corner_values`); Gouraud's vertex lighting and
-    flat shading's face colours are the compiled ones of
-    `softras.kernels.light` (the same bits)."""
+    `compiled` draw by `set_up_draw` and `corner_values`, then `_draw`; any
+    other by the stages.  Gouraud's vertex lighting and flat shading's face
+    colours are the compiled ones of `softras.kernels.light` (the same
+    bits)."""
     if not compiled(scene, draw, inputs):
         stages.draw_triangles(scene, draw, inputs, color, depth)
         return
@@ -440,6 +439,29 @@ def _triple(table, t, c):
     return table[t, 0, c], table[t, 1, c], table[t, 2, c]
 
 
+def _make_texels(sources: str):
+    """The kernel `_texels`, with the cache key ``sources`` as a closure
+    variable (`softras.kernels.stamp.sources_stamp`)."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _texels(k, out_x, out_y, weights, corners, u, v, sampler, texels, table, out):
+        """The texels of a textured triangle's k fragments of one band:
+        pixel (out_x[f], out_y[f]) with perspective weights weights[:, f],
+        the triangle's `Corners` and its corners' (s, t) as u, v 3-tuples;
+        `softras.pipeline.render.uv_at_fragments` (exact) and `_texel`, into
+        out (4, >= k).  A function of its own, called once per triangle and
+        band: inlined into `_draw`, the texture code made it take 47 s to
+        compile."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        for f in range(k):
+            w = (weights[0, f], weights[1, f], weights[2, f])
+            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, out_x[f] + 0.5, out_y[f] + 0.5)
+            r, g, b, a = _texel(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
+            out[0, f], out[1, f], out[2, f], out[3, f] = r, g, b, a
+
+    return _texels
+
+
 def _make_draw(sources: str):
     """The exact kernel `_draw`, with the cache key ``sources``
     (`softras.kernels.stamp.sources_stamp`) as a closure variable."""
@@ -480,6 +502,7 @@ def _make_draw(sources: str):
             box = np.empty(4, np.int64)
             src = np.empty(4)
             weights = np.empty((3, band_rows * width))          # the fragments' perspective weights
+            texel = np.ones((4, band_rows * width))              # and texels (ones when untextured)
             for band in range(thread, n_bands, n_threads):
                 top = band * band_rows
                 bottom = min(top + band_rows, height) - 1
@@ -488,8 +511,8 @@ def _make_draw(sources: str):
                     box[2], box[3] = max(bbox[t, 2], top), min(bbox[t, 3], bottom)
                     if box[2] > box[3]:
                         continue
-                    k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets, unit,
-                                         out_x, out_y, out_mask, 0, True)
+                    k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets,
+                                         unit, out_x, out_y, out_mask, 0, True)
                     # The triangle's values as scalars: corners, depth plane, corner colours,
                     # and for Phong its corners' world positions and normals.
                     corners = Corners((window[t, 0, 0], window[t, 1, 0], window[t, 2, 0]),
@@ -511,11 +534,12 @@ def _make_draw(sources: str):
                         for f in range(k):
                             w = _weights_at(corners, out_x[f] + 0.5, out_y[f] + 0.5)
                             weights[0, f], weights[1, f], weights[2, f] = w[0], w[1], w[2]
+                    if textured:
+                        _TEXELS(k, out_x, out_y, weights, corners, u, v, sampler, texels, table, texel)
                     for f in range(k):
                         px, py, mask = out_x[f], out_y[f], out_mask[f]
-                        wp = (weights[0, f], weights[1, f], weights[2, f])
                         # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
-                        w = (1.0, 0.0, 0.0) if shading == FLAT else wp
+                        w = (1.0, 0.0, 0.0) if shading == FLAT else (weights[0, f], weights[1, f], weights[2, f])
                         r, g, b, a = _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a)
                         if shading == PHONG:
                             nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
@@ -526,10 +550,8 @@ def _make_draw(sources: str):
                         # times the texel.
                         src[0], src[1], src[2], src[3] = r * a, g * a, b * a, a
                         if textured:
-                            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, px + 0.5, py + 0.5)
-                            texel = _texel(sampler, texels, table, _mix(wp, u), _mix(wp, v), dsdx, dtdx, dsdy, dtdy)
                             for ch in range(4):
-                                src[ch] = src[ch] * texel[ch]
+                                src[ch] = src[ch] * texel[ch, f]
                         if alpha_test and src[3] < cutoff:  # (`softras.pipeline.fragment.alpha_test`: NaN kept)
                             continue
                         for s in range(n_samples):
@@ -547,5 +569,6 @@ def _make_draw(sources: str):
     return _draw
 
 
-# The kernel, keyed on the kernels' sources and the stages' it calls.
+# The kernels, keyed on the kernels' sources and the stages' they call.
+_TEXELS = _make_texels(sources_stamp(rasterize, ops, texture))
 _DRAW = _make_draw(sources_stamp(rasterize, ops, texture))
