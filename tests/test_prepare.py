@@ -148,6 +148,7 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize)
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize)]
     assert exact_key == [stamp.sources_stamp(rasterize, ops, texture)]
+    assert [cell.cell_contents for cell in k_exact._TEXELS.py_func.__closure__] == exact_key
     read_bytes = Path.read_bytes
     for module, modules in ((ops, (ops, texture, rasterize)), (texture, (ops, texture, rasterize)),
                             (rasterize, (ops, texture, rasterize)), (lines, (lines, ops, rasterize)),
