@@ -502,7 +502,7 @@ def _make_draw(sources: str):
             box = np.empty(4, np.int64)
             src = np.empty(4)
             weights = np.empty((3, band_rows * width))          # the fragments' perspective weights
-            texel = np.ones((4, band_rows * width))              # and texels (ones when untextured)
+            texel = np.empty((4, band_rows * width))             # and texels (textured draws)
             for band in range(thread, n_bands, n_threads):
                 top = band * band_rows
                 bottom = min(top + band_rows, height) - 1
