@@ -47,9 +47,8 @@ from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, f
 from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _bilinear_float, _linear_float, _nan_max, texture_tables
-from softras.pipeline import clip as clip_stage
-from softras.pipeline import ops, rasterize, render as stages, sampling, setup, texture, texture_beyond, vertex
-from softras.pipeline.rasterize import _raster_triangle
+from softras.pipeline import ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
+from softras.pipeline.rasterize import _raster_triangle, _sample_box
 from softras.pipeline.texture import wrap_index
 from softras.scene import Scene
 
@@ -76,24 +75,19 @@ def compiled(scene: Scene, draw, inputs: stages.Pass) -> bool:
 
 
 def render_samples(scene: Scene, job: stages.Job) -> np.ndarray:
-    """`softras.pipeline.render.render_samples` of an exact-precision job:
-    the per-sample colour buffer (H, W, S, 4) float64, premultiplied, GL's
-    y-up rows, in the stages' passes of at most 32 samples: the stages'
-    `softras.pipeline.render.render_pass`, with `draw_triangles` for the
-    triangle draws."""
+    """`softras.pipeline.render.render_samples` of an exact-precision job
+    with `draw_triangles` for the triangle draws: the per-sample colour
+    buffer (H, W, S, 4) float64, premultiplied, GL's y-up rows."""
     if job.precision != "exact":
         raise ValueError("softras.kernels.exact renders exact precision only")
-    stages.check_sample_memory(scene, len(job.positions), stages.SAMPLE_BYTES)
-    return sampling.in_passes(job.positions, lambda positions: stages.render_pass(
-        scene, stages.Pass.of(job, positions), draw_triangles))
+    return stages.render_samples(scene, job, draw_triangles)
 
 
 def set_up_draw(scene: Scene, draw, inputs: stages.Pass):
     """`softras.pipeline.render.set_up_draw` in exact precision: the stages'
-    vertex and clip stages, then `setup_triangles`."""
-    clipped = clip_stage.clip_triangles(stages.draw_clip_positions(scene, draw, "exact"), draw.mesh.indices,
-                                        precision="exact", policy=inputs.policy, width=scene.width,
-                                        height=scene.height)
+    vertex and clip stages (`softras.pipeline.render.clip_draw`), then
+    `setup_triangles`."""
+    clipped = stages.clip_draw(scene, draw, inputs)
     return clipped, setup_triangles(clipped.clip, scene.width, scene.height, cull=draw.cull,
                                     offsets=inputs.offsets, unit=inputs.unit, tie_rule=inputs.tie_rule,
                                     front_face=scene.front_face)
@@ -110,12 +104,10 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str, off
         inv_w=np.empty((n, 3)), raster=np.empty((n, 3, 2)), edge_a=np.empty((n, 3)), edge_b=np.empty((n, 3)),
         edge_x0=np.empty((n, 3)), edge_y0=np.empty((n, 3)), edge_inclusive=np.empty((n, 3), bool),
         bbox=np.empty((n, 4), np.int64), front_facing=np.empty(n, bool))
-    offsets = np.asarray(offsets, np.float64)
-    box = (offsets[:, 0].max(), offsets[:, 0].min(), offsets[:, 1].max(), offsets[:, 1].min())
     fields = [getattr(out, field.name) for field in dataclasses.fields(out)]
     count = _setup(np.ascontiguousarray(clip, np.float64), width, height,
-                   CULL_CODES[setup.window_cull(cull, front_face)], front_face == "ccw", box, float(unit),
-                   setup.TIE_RULES[tie_rule], *fields)
+                   CULL_CODES[setup.window_cull(cull, front_face)], front_face == "ccw",
+                   np.ascontiguousarray(offsets, np.float64), float(unit), setup.TIE_RULES[tie_rule], *fields)
     return setup.TriangleSetup(*(field[:count] for field in fields))
 
 
@@ -123,30 +115,32 @@ def corner_values(clipped, tris: setup.TriangleSetup, mesh):
     """`softras.pipeline.render.corner_values`' corners function, compiled
     (`_corners`): per-vertex values (N, K) -> (T', 3, K) at the set-up
     triangles' corners."""
-    weights = np.ascontiguousarray(clipped.weights[tris.triangle])             # (T', 3, 3)
-    source = np.ascontiguousarray(mesh.indices[clipped.source[tris.triangle]])  # (T', 3)
-    corner = np.ascontiguousarray(tris.corner)
+    c = np.ascontiguousarray
+    tables = (c(clipped.weights), c(clipped.source), c(mesh.indices, np.int64), c(tris.triangle), c(tris.corner))
 
     def corners(values: np.ndarray) -> np.ndarray:
-        out = np.empty((len(source), 3, values.shape[1]))
-        _corners(weights, corner, source, np.ascontiguousarray(values, np.float64), out)
+        out = np.empty((len(tris.triangle), 3, values.shape[1]))
+        _corners(*tables, c(values, np.float64), out)
         return out
 
     return corners
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _corners(weights, corner, source, values, out):
+def _corners(weights, source, indices, triangle, corner, values, out):
     """out[t, k] = the clip weights of set-up corner k (row corner[t, k] of
-    weights[t]) applied to the source vertices' values, as numpy's einsum
+    weights[triangle[t]]) applied to the values of its source triangle's
+    vertices (indices[source[triangle[t]]]), as numpy's einsum
     ``tkj,tjc->tkc`` sums them: from 0, j = 0, 1, 2 in order."""
     for t in range(out.shape[0]):
+        clipped = triangle[t]
+        vertices = source[clipped]
         for k in range(3):
             row = corner[t, k]
             for c in range(out.shape[2]):
                 total = 0.0
                 for j in range(3):
-                    total += weights[t, row, j] * values[source[t, j], c]
+                    total += weights[clipped, row, j] * values[indices[vertices, j], c]
                 out[t, k, c] = total
 
 
@@ -177,19 +171,20 @@ def _box_edge(v, lo, hi):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _setup(clip, width, height, cull, front_ccw, box, unit, tie_rule, triangle, corner, window, inv_w, raster,
+def _setup(clip, width, height, cull, front_ccw, offsets, unit, tie_rule, triangle, corner, window, inv_w, raster,
            edge_a, edge_b, edge_x0, edge_y0, inclusive, bbox, front):
     """`softras.pipeline.setup.setup_triangles` (exact precision) of the
     clipped triangles clip (T, 3, 4), with the same operations in the same
     order: the viewport transform ``(c / w) W/2 + W/2``, twice the signed
     area, culling (cull: CULL_CODES, counter-clockwise terms), the corners
     made counter-clockwise, the edge equations (`edge_equations`), the tie
-    rule's inclusive edges, the pixel box from the sample offsets' extremes
-    ``box`` (max x, min x, max y, min y) and ``unit``.  Writes the visible
+    rule's inclusive edges, the pixel box from the extremes of the sample
+    offsets (S, 2) (`softras.pipeline.rasterize._sample_box`) and ``unit``.  Writes the visible
     triangles' rows, in order, into the `TriangleSetup`'s arrays (T rows
     each) and returns their count."""
     scale = (width / 2.0, height / 2.0, 0.5)
     sign_a, sign_b = tie_rule
+    min_ox, max_ox, min_oy, max_oy = _sample_box(offsets)
     wx, wy, wz, ww = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     n = 0
     for t in range(clip.shape[0]):
@@ -206,10 +201,10 @@ def _setup(clip, width, height, cull, front_ccw, box, unit, tie_rule, triangle, 
         order = (0, 1, 2) if ccw else (1, 0, 2)        # corners 0 and 1 swapped: counter-clockwise
         xs = (wx[order[0]], wx[order[1]], wx[order[2]])
         ys = (wy[order[0]], wy[order[1]], wy[order[2]])
-        x0 = np.ceil((_nan_min3(xs[0], xs[1], xs[2]) - box[0]) / unit)
-        x1 = np.floor((_nan_max3(xs[0], xs[1], xs[2]) - box[1]) / unit)
-        y0 = np.ceil((_nan_min3(ys[0], ys[1], ys[2]) - box[2]) / unit)
-        y1 = np.floor((_nan_max3(ys[0], ys[1], ys[2]) - box[3]) / unit)
+        x0 = np.ceil((_nan_min3(xs[0], xs[1], xs[2]) - max_ox) / unit)
+        x1 = np.floor((_nan_max3(xs[0], xs[1], xs[2]) - min_ox) / unit)
+        y0 = np.ceil((_nan_min3(ys[0], ys[1], ys[2]) - max_oy) / unit)
+        y1 = np.floor((_nan_max3(ys[0], ys[1], ys[2]) - min_oy) / unit)
         bx0 = max(_box_edge(x0, -1.0, float(width)), 0)
         bx1 = min(_box_edge(x1, -1.0, float(width)), width - 1)
         by0 = max(_box_edge(y0, -1.0, float(height)), 0)
@@ -307,7 +302,7 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
     if shading == PHONG:
         world = vertex.world_positions(mesh.positions, draw.world)
         normals = vertex.world_normals(mesh.normals, draw.world, unit=False)
-        lit = np.concatenate([corners(world), corners(normals)], axis=2)           # (T', 3, 6)
+        lit = corners(np.concatenate([world, normals], axis=1))                    # (T', 3, 6)
         lights, lighting = scene_lighting(scene, material)
     uv, (sampler, texels) = np.zeros((1, 3, 2)), NO_TEXTURE
     if material.texture is not None:
@@ -570,5 +565,6 @@ def _make_draw(sources: str):
 
 
 # The kernels, keyed on the kernels' sources and the stages' they call.
-_TEXELS = _make_texels(sources_stamp(rasterize, ops, texture))
-_DRAW = _make_draw(sources_stamp(rasterize, ops, texture))
+_SOURCES = sources_stamp(rasterize, ops, texture)
+_TEXELS = _make_texels(_SOURCES)
+_DRAW = _make_draw(_SOURCES)

@@ -10,9 +10,9 @@ kernel `softras.pipeline.lines`), and the exact kernel
 `softras.kernels.light` and `softras.kernels.texture`, and it calls the
 stages' (`softras.pipeline.rasterize`, `softras.pipeline.ops`,
 `softras.pipeline.texture`): an edit of one of those alone would load a
-stale kernel.  The stamp is a
-closure variable of the kernel, and numba keys a closure's cache on its
-variables, so any edit of a module it covers compiles the kernel again.
+stale kernel.  The stamp is a closure variable of the kernel, and numba
+keys a closure's cache on its variables, so any edit of a module it covers
+compiles the kernel again.
 """
 
 from __future__ import annotations

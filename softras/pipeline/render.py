@@ -274,13 +274,14 @@ def check_sample_memory(scene: Scene, n_samples: int, bytes_per_sample: int) -> 
                          f"{MAX_SAMPLE_BYTES / 2**30:.0f} GiB): use fewer samples or a smaller image")
 
 
-def render_samples(scene: Scene, job: Job) -> np.ndarray:
+def render_samples(scene: Scene, job: Job, triangles=None) -> np.ndarray:
     """The per-sample colour buffer (H, W, S, 4) of every draw, GL's y-up rows,
     premultiplied: float64 k/255 values for rgba8 in gl precision, float32 for
     rgba32f in gl precision, float64 in exact (`render_pass`, in passes of
-    at most MAX_PASS_SAMPLES samples)."""
+    at most MAX_PASS_SAMPLES samples; triangles as `render_pass`')."""
     check_sample_memory(scene, len(job.positions), SAMPLE_BYTES)
-    return sampling.in_passes(job.positions, lambda positions: render_pass(scene, Pass.of(job, positions)))
+    return sampling.in_passes(job.positions,
+                              lambda positions: render_pass(scene, Pass.of(job, positions), triangles))
 
 
 def resolve(job: Job, color: np.ndarray) -> np.ndarray:
@@ -417,13 +418,19 @@ def draw_lines(scene: Scene, draw, inputs: Pass, color: np.ndarray, depth: np.nd
                             ops.BLEND_MODES[draw.blend], inputs.quantize)
 
 
+def clip_draw(scene: Scene, draw, inputs: Pass):
+    """A triangle draw through the vertex and clip stages: its
+    `softras.pipeline.clip.ClippedTriangles`."""
+    return clip_stage.clip_triangles(draw_clip_positions(scene, draw, inputs.precision), draw.mesh.indices,
+                                     precision=inputs.precision, policy=inputs.policy, width=scene.width,
+                                     height=scene.height)
+
+
 def set_up_draw(scene: Scene, draw, inputs: Pass):
     """A triangle draw through the vertex, clip and setup stages: its
     `softras.pipeline.clip.ClippedTriangles` and
     `softras.pipeline.setup.TriangleSetup` (possibly empty)."""
-    clipped = clip_stage.clip_triangles(draw_clip_positions(scene, draw, inputs.precision), draw.mesh.indices,
-                                        precision=inputs.precision, policy=inputs.policy, width=scene.width,
-                                        height=scene.height)
+    clipped = clip_draw(scene, draw, inputs)
     tris = setup.setup_triangles(clipped.clip, scene.width, scene.height, precision=inputs.precision,
                                  cull=draw.cull, offsets=inputs.offsets, unit=inputs.unit,
                                  generated=clipped.generated, tie_rule=inputs.tie_rule,
