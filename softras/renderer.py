@@ -7,7 +7,8 @@ is drawn by their fused per-draw kernel, everything else by the readable stages 
 In exact precision, triangle draws take the exact kernel
 (`softras.kernels.exact`) and the draws it leaves out (lines, normal and
 bump maps, anisotropic filtering) the stages, into the same buffers
-(tests/test_exact_path.py).
+(tests/test_exact_path.py).  Kernels not compiled yet are compiled by a
+background process while the stages draw (`softras.kernels.prepare`).
 `render` adds the choice of backend ("soft" or "gl", i.e. glref) behind
 `softras.render`.
 """
@@ -45,7 +46,11 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
                         texture_fixed_point=texture_fixed_point, texture_filter=texture_filter,
                         texture_bounds=texture_bounds, tie_rule=tie_rule)
     if job.precision == "exact" and fast_path:
-        return exact.resolve(job, exact.render_samples(scene, job))
+        # The exact kernels' memory is the stages' (the same float64 sample
+        # buffers): until they are compiled, the stages draw the scene.
+        if prepare.ensure([prepare.EXACT]):
+            return exact.resolve(job, exact.render_samples(scene, job))
+        return stages.resolve(job, stages.render_samples(scene, job))
     # A gl-precision RGBA8 scene that uses only what the kernels implement
     # gets the same bytes from their fused kernel (tests/test_fastpath.py).
     # A new option must either send scenes that use it past this test or be

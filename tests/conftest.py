@@ -42,7 +42,7 @@ def pytest_sessionstart(session):
     if worker and count:
         from softras.kernels import draw, prepare
 
-        variants = list(draw._DRAW_TILES)                   # (samples, textured), every driver
+        variants = list(draw._DRAW_TILES) + [prepare.EXACT]  # every driver, and exact precision's kernels
         for variant in variants[int(worker.removeprefix("gw")) % int(count)::int(count)]:
             prepare.prepare(variant)
     if not session.config.getoption("--update-golden", default=False):

@@ -4,6 +4,12 @@ compiles a variant at a time, and the preparation scene reaches every kernel."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -18,6 +24,7 @@ from softras.pipeline import lines, texture, vertex
 from softras.renderer import render_scene
 
 SCENE = softras.load_scene(prepare.preparation_scene(1, False))
+SCENES_DIR = Path(__file__).resolve().parents[1] / "scenes"
 
 
 @pytest.fixture
@@ -97,6 +104,75 @@ def test_wait_mode_prepares_first_and_marks_ready(fresh_cache, started, monkeypa
     assert started == []
 
 
+def test_exact_precision_draws_with_the_stages_while_its_kernels_compile(fresh_cache, started, monkeypatch):
+    """Exact precision, nothing ready: the stages draw the scene (the same
+    bytes) and one background preparation of `prepare.EXACT` is started;
+    once it is ready, none is."""
+    from softras.kernels import exact
+
+    kernel_renders = []
+    render_samples = exact.render_samples
+    monkeypatch.setattr(exact, "render_samples", lambda *args: kernel_renders.append(1) or render_samples(*args))
+    monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)
+    image = render_scene(SCENE, precision="exact")
+    assert started == [[prepare.EXACT]] and kernel_renders == []
+    assert not prepare.ready(prepare.EXACT)
+    assert np.array_equal(image, render_scene(SCENE, precision="exact", fast_path=False))
+    prepare.main([prepare.EXACT])
+    assert prepare.ready(prepare.EXACT) and not prepare.ready((1, False))
+    kernel_renders.clear()
+    assert np.array_equal(render_scene(SCENE, precision="exact"), image)
+    assert started == [[prepare.EXACT]] and kernel_renders == [1]
+
+
+def test_variant_names_round_trip():
+    for variant in [(1, False), (4, True), (0, True), prepare.EXACT]:
+        assert prepare.parse(prepare.name(variant)) == variant
+    assert [prepare.name(v) for v in [(1, False), (4, True), (0, True), prepare.EXACT]] == ["1u", "4t", "0t", "exact"]
+
+
+def test_the_exact_preparation_reaches_every_exact_kernel(tmp_path):
+    """In a new process, preparing `prepare.EXACT` compiles (or loads) every
+    kernel of softras.kernels that exact precision calls, and the clipper's:
+    rendering the conformance scenes and random lit, textured, blended
+    scenes at 1 and 4 samples afterwards adds no compiled specialisation to
+    any of their dispatchers.  (The draws exact precision leaves to the
+    stages compile the stages' own kernels, seconds, as the stages do.)"""
+    program = f"""
+import json, sys
+from pathlib import Path
+import numba
+sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
+import softras
+from softras.kernels import exact, interpolate, light, prepare, setup
+from softras.pipeline import clip
+from softras.renderer import render_scene
+from test_fastpath import lit_scene, random_line_scene, random_scene
+
+prepare.cache_dir = lambda: Path({str(tmp_path)!r})
+modules = (exact, interpolate, light, setup, clip)
+def compiled():
+    return {{f"{{m.__name__}}.{{n}}": len(d.signatures) for m in modules for n, d in vars(m).items()
+             if isinstance(d, numba.core.registry.CPUDispatcher)}}
+prepare.prepare(prepare.EXACT)
+before = compiled()
+scenes = [softras.load_scene(p) for p in sorted(Path({str(SCENES_DIR)!r}).glob("*.json"))]
+scenes += [softras.load_scene(f(seed)) for seed in range(4) for f in (random_scene, random_line_scene)]
+scenes += [softras.load_scene(lit_scene(seed, shading)) for seed in range(2) for shading in ("flat", "gouraud", "phong")]
+for scene in scenes:
+    for samples in (None, 4):
+        render_scene(scene, precision="exact", samples=samples)
+print(json.dumps([before, compiled()]))
+"""
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, prepare.ENV: prepare.MODE_WAIT})
+    assert done.returncode == 0, done.stderr[-3000:]
+    before, after = json.loads(done.stdout.splitlines()[-1])
+    for kernel in ("_DRAW", "_setup", "_corners", "_resolve_box"):           # (called from Python)
+        assert before[f"softras.kernels.exact.{kernel}"] >= 1, f"the preparation did not compile exact.{kernel}"
+    assert {name: n for name, n in after.items() if n != before[name]} == {}
+
+
 def test_one_process_prepares_a_variant_at_a_time(fresh_cache, monkeypatch):
     """While another process holds a variant's lock, no second background
     process is started for it; once free, one is (here: not really started)."""
@@ -135,8 +211,6 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     inline, the line kernel's with pipeline/lines.py too, and the exact
     kernel's with pipeline/rasterize.py, pipeline/ops.py and
     pipeline/texture.py (`softras.kernels.stamp.sources_stamp`)."""
-    from pathlib import Path
-
     from softras.kernels import exact as k_exact
     from softras.kernels import light as k_light
     from softras.kernels import lines as k_lines

@@ -3,8 +3,10 @@
 numba compiles the kernels of `softras.kernels.draw` the first time a
 process needs them and keeps them in its on-disk cache; on a fresh clone
 that takes about 45 s per tile-driver variant (a sample count, textured
-or not: docs/speed.md, "Compile time").  The readable stages give the same
-bytes (tests/test_fastpath.py) and compile in seconds, so a render need not
+or not: docs/speed.md, "Compile time"), and about 25 s for the exact
+kernels (`softras.kernels.exact`, the variant `EXACT`).  The readable
+stages give the same bytes (tests/test_fastpath.py,
+tests/test_exact_path.py) and compile in seconds, so a render need not
 wait: `ensure` either
 
 - "background" (`MODE_BACKGROUND`): when a variant the scene needs is not
@@ -49,6 +51,10 @@ MODE_WAIT, MODE_BACKGROUND = "wait", "background"
 MODES = (MODE_WAIT, MODE_BACKGROUND)
 ENV = "SOFTRAS_COMPILE"
 
+# A variant is a tile driver's (driver samples, textured) or EXACT: the
+# exact-precision kernels, one compiled set for every scene.
+EXACT = "exact"
+
 
 def mode() -> str:
     """The preparation mode: ``SOFTRAS_COMPILE`` or "background"; any other
@@ -75,15 +81,17 @@ def variants(scene, samples: int) -> set[tuple[int, bool]]:
 @functools.cache
 def _stamp() -> str:
     """What the compiled code depends on: the kernels' sources (the drivers'
-    own stamp, `softras.kernels.draw._SOURCES`), the stages' (numba loops of
-    their own, and functions the drivers inline), numba's version, the host
-    CPU (numba compiles for it)."""
+    own stamp, `softras.kernels.draw._SOURCES`, and the exact kernels',
+    kernels/exact.py), the stages' (numba loops of their own, and functions
+    the kernels inline), numba's version, the host CPU (numba compiles for
+    it)."""
     import llvmlite.binding as llvm
 
     from softras.kernels import draw
 
     digest = hashlib.sha256(f"{numba.__version__}\0{llvm.get_host_cpu_name()}\0{draw._SOURCES}\0".encode())
-    for path in sorted((Path(__file__).resolve().parents[1] / "pipeline").glob("*.py")):
+    package = Path(__file__).resolve().parents[1]
+    for path in sorted(package.glob("pipeline/*.py")) + [package / "kernels" / "exact.py"]:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()[:16]
 
@@ -97,16 +105,29 @@ def cache_dir() -> Path:
     return Path(__file__).resolve().parent / "__pycache__"
 
 
-def _mark(variant: tuple[int, bool]) -> Path:
+def name(variant) -> str:
+    """A variant's name in marks and on the command line: "1u" (1 sample,
+    untextured), "4t" (4, textured), "0t" (any other count), or "exact"."""
+    if variant == EXACT:
+        return EXACT
     samples, textured = variant
-    return cache_dir() / f"softras-ready-{_stamp()}-{samples}{'t' if textured else 'u'}"
+    return f"{samples}{'t' if textured else 'u'}"
+
+
+def parse(text: str):
+    """The variant named ``text`` (`name`'s inverse)."""
+    return EXACT if text == EXACT else (int(text[:-1]), text[-1] == "t")
+
+
+def _mark(variant) -> Path:
+    return cache_dir() / f"softras-ready-{_stamp()}-{name(variant)}"
 
 
 _marks_seen: set[Path] = set()
 
 
-def ready(variant: tuple[int, bool]) -> bool:
-    """Whether ``variant`` (samples, textured) has been prepared on this
+def ready(variant) -> bool:
+    """Whether ``variant`` ((samples, textured) or EXACT) has been prepared on this
     machine (a mark found once is not looked up again in this process)."""
     mark = _mark(variant)
     if mark not in _marks_seen and mark.exists():
@@ -115,7 +136,7 @@ def ready(variant: tuple[int, bool]) -> bool:
 
 
 @contextlib.contextmanager
-def _locked(variant: tuple[int, bool], blocking: bool = True):
+def _locked(variant, blocking: bool = True):
     """An exclusive lock on preparing ``variant``: yields True when held,
     False when another process holds it and ``blocking`` is False."""
     path = _mark(variant).with_suffix(".lock")
@@ -164,25 +185,37 @@ def preparation_scene(samples: int, textured: bool) -> dict:
             "nodes": nodes}
 
 
-def prepare(variant: tuple[int, bool]) -> None:
-    """Compile ``variant`` (driver samples, textured) now unless it is ready:
-    under its lock, render `preparation_scene` on the compiled path (at 2
-    samples for the driver of any count), then mark it ready."""
+def prepare(variant) -> None:
+    """Compile ``variant`` now unless it is ready: under its lock, render
+    `preparation_scene` on the compiled path (a tile driver (driver
+    samples, textured): in gl precision, at 2 samples for the driver of any
+    count; EXACT: textured, in exact precision), then mark it ready."""
     if ready(variant):
         return
-    from softras.kernels import draw
-    from softras.pipeline import sampling
     from softras.scene import load_scene
 
     with _locked(variant):
         if ready(variant):                      # prepared by the process we waited for
             return
-        samples, textured = variant
-        positions = (sampling.sample_positions(samples) if samples else
-                     sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)
-        scene = load_scene(preparation_scene(samples or 1, textured))    # (a scene has 1 or 4)
-        assert draw.unsupported(scene, precision="gl", clipping=None) is None
-        draw.render_samples(scene, positions)
+        if variant == EXACT:
+            from softras.kernels import exact
+            from softras.pipeline import render as stages
+
+            scene = load_scene(preparation_scene(1, True))
+            job = stages.Job.of(scene, precision="exact", samples=None, pattern=None, seed=0, resolve_filter="box",
+                                framebuffer=None, clipping=None, texture_fixed_point=True, texture_filter=None,
+                                texture_bounds=None, tie_rule="left_bottom")
+            exact.resolve(job, exact.render_samples(scene, job))
+        else:
+            from softras.kernels import draw
+            from softras.pipeline import sampling
+
+            samples, textured = variant
+            positions = (sampling.sample_positions(samples) if samples else
+                         sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)
+            scene = load_scene(preparation_scene(samples or 1, textured))    # (a scene has 1 or 4)
+            assert draw.unsupported(scene, precision="gl", clipping=None) is None
+            draw.render_samples(scene, positions)
         _mark(variant).touch()
 
 
@@ -204,7 +237,7 @@ def start_background(variants) -> bool:
                 missing.append(variant)
     if not missing:
         return False
-    args = [f"{samples}{'t' if textured else 'u'}" for samples, textured in missing]
+    args = [name(variant) for variant in missing]
     subprocess.Popen([sys.executable, "-m", "softras.kernels.prepare", *args], stdin=subprocess.DEVNULL,
                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
                      env={**os.environ, ENV: MODE_WAIT})
@@ -220,7 +253,7 @@ def ensure(variants, stages_can_draw: bool = True) -> bool:
     process is preparing them).  stages_can_draw : whether the stages can
     draw the scene at all (their sample buffers are larger); if not, the
     kernels are prepared now in either mode."""
-    variants = sorted(set(variants))
+    variants = sorted(set(variants), key=name)
     if all(ready(v) for v in variants):
         return True
     if mode() == MODE_BACKGROUND and stages_can_draw:
@@ -232,14 +265,16 @@ def ensure(variants, stages_can_draw: bool = True) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m softras.kernels.prepare 1u 0t ...``: prepare the variants
-    (samples, then u untextured or t textured) at low priority."""
+    """``python -m softras.kernels.prepare 1u 0t exact ...``: prepare the
+    variants (`name`: samples, then u untextured or t textured; or exact)
+    at low priority."""
     parser = argparse.ArgumentParser(prog="python -m softras.kernels.prepare", description=main.__doc__)
     parser.add_argument("variants", nargs="+",
-                        help="e.g. 1u (1 sample, untextured), 4t (4, textured) or 0t (any other count)")
+                        help="e.g. 1u (1 sample, untextured), 4t (4, textured), 0t (any other count) "
+                             "or exact (the exact-precision kernels)")
     args = parser.parse_args(argv)
     for text in args.variants:
-        prepare((int(text[:-1]), text[-1] == "t"))
+        prepare(parse(text))
     return 0
 
 
