@@ -49,7 +49,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
         # The exact kernels' memory is the stages' (the same float64 sample
         # buffers): until they are compiled, the stages draw the scene.
         if prepare.ensure([prepare.EXACT]):
-            return exact.resolve(job, exact.render_samples(scene, job))
+            return exact.resolve(job, exact.render_samples(scene, job, reuse=True))
         return stages.resolve(job, stages.render_samples(scene, job))
     # A gl-precision RGBA8 scene that uses only what the kernels implement
     # gets the same bytes from their fused kernel (tests/test_fastpath.py).

@@ -221,6 +221,27 @@ def test_the_compiled_resolve_leaves_the_tent_and_rgba32f_to_the_stages():
         assert out.dtype == expected.dtype and np.array_equal(out, expected), options
 
 
+def test_the_reused_framebuffer_is_the_stages_cleared_one():
+    """`exact.reused_framebuffer` gives `new_pass_framebuffer`'s values after
+    a render has written its scratch arrays, for scenes of other sizes,
+    backgrounds and sample counts in turn; and renders that reuse them give
+    the stages' pictures in any order (a render of one scene between two of
+    another)."""
+    a = softras.load_scene(random_scene(1))
+    b = softras.load_scene(dict(random_scene(2, width=40, height=61), background=[0.2, 0.4, 0.6, 0.5]))
+    for scene, samples in ((a, 4), (b, 1), (a, 1), (b, 9), (a, 4)):
+        pattern = "halton" if samples == 9 else None
+        job = exact_job(scene, samples=samples, pattern=pattern)
+        inputs = stages.Pass.of(job, job.positions)
+        exact.render_samples(scene, job, reuse=True)                 # (dirty the scratch)
+        for made, expected in zip(exact.reused_framebuffer(scene, inputs), stages.new_pass_framebuffer(scene, inputs)):
+            assert made.shape == expected.shape and made.dtype == expected.dtype
+            assert np.array_equal(made, expected)
+        assert np.array_equal(render_scene(scene, precision="exact", samples=samples, pattern=pattern),
+                              render_scene(scene, precision="exact", samples=samples, pattern=pattern,
+                                           fast_path=False))
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_the_compiled_setup_gives_the_stages_triangles(seed):
     """`exact.setup_triangles` = `softras.pipeline.setup.setup_triangles`

@@ -112,7 +112,8 @@ def test_exact_precision_draws_with_the_stages_while_its_kernels_compile(fresh_c
 
     kernel_renders = []
     render_samples = exact.render_samples
-    monkeypatch.setattr(exact, "render_samples", lambda *args: kernel_renders.append(1) or render_samples(*args))
+    monkeypatch.setattr(exact, "render_samples",
+                        lambda *args, **kw: kernel_renders.append(1) or render_samples(*args, **kw))
     monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)
     image = render_scene(SCENE, precision="exact")
     assert started == [[prepare.EXACT]] and kernel_renders == []

@@ -205,7 +205,7 @@ def prepare(variant) -> None:
             job = stages.Job.of(scene, precision="exact", samples=None, pattern=None, seed=0, resolve_filter="box",
                                 framebuffer=None, clipping=None, texture_fixed_point=True, texture_filter=None,
                                 texture_bounds=None, tie_rule="left_bottom")
-            exact.resolve(job, exact.render_samples(scene, job))
+            exact.resolve(job, exact.render_samples(scene, job, reuse=True))
         else:
             from softras.kernels import draw
             from softras.pipeline import sampling
