@@ -375,19 +375,6 @@ def test_vertex_and_face_lighting_are_the_stages_to_the_bit():
         assert np.array_equal(got.view(np.int64), expected.view(np.int64)), f"flat, shininess {shininess}"
 
 
-def test_power_is_numpys():
-    """`k_light._power` gives numpy.power's bits (its special cases
-    included) for exponents a material may have, over bases in [0, 1] as
-    N.H is, and at 0 and 1."""
-    rng = np.random.default_rng(7)
-    x = np.concatenate([rng.uniform(0, 1, 4000), np.exp(-rng.uniform(0, 40, 1000)), [0.0, 1.0, 0.5]])
-    for y in [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 7.3, 32.0, 100.0, 4096.0]:
-        with np.errstate(all="ignore"):
-            expected = np.power(x, y)
-        got = np.array([k_light._power(v, y) for v in x])
-        assert np.array_equal(got.view(np.int64), expected.view(np.int64)), f"exponent {y}"
-
-
 @pytest.mark.parametrize("seed", range(8))
 @pytest.mark.parametrize("fixed_point", [True, False])
 def test_random_textured_scenes_are_bit_identical(seed, fixed_point):

@@ -209,24 +209,27 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     """numba's cache checks only a kernel's own file: the tile drivers' key
     (`softras.kernels.draw._SOURCES`) must change with pipeline/ops.py,
     pipeline/texture.py and pipeline/rasterize.py, whose kernels they
-    inline, the line kernel's with pipeline/lines.py too, and the exact
-    kernel's with pipeline/rasterize.py, pipeline/ops.py and
-    pipeline/texture.py (`softras.kernels.stamp.sources_stamp`)."""
+    inline, and pipeline/libm.py (the Phong kernels' pow), the line
+    kernel's with pipeline/lines.py, ops.py and rasterize.py, and the exact
+    kernel's with pipeline/rasterize.py, pipeline/ops.py,
+    pipeline/texture.py and pipeline/libm.py
+    (`softras.kernels.stamp.sources_stamp`)."""
     from softras.kernels import exact as k_exact
     from softras.kernels import light as k_light
     from softras.kernels import lines as k_lines
     from softras.kernels import stamp
-    from softras.pipeline import ops, rasterize
+    from softras.pipeline import libm, ops, rasterize
 
     line_key = [cell.cell_contents for cell in k_lines._DRAW_LINES.py_func.__closure__]
     exact_key = [cell.cell_contents for cell in k_exact._DRAW.py_func.__closure__]
-    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize)
+    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize, libm)
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize)]
-    assert exact_key == [stamp.sources_stamp(rasterize, ops, texture)]
+    assert exact_key == [stamp.sources_stamp(rasterize, ops, texture, libm)]
     assert [cell.cell_contents for cell in k_exact._TEXELS.py_func.__closure__] == exact_key
     read_bytes = Path.read_bytes
     for module, modules in ((ops, (ops, texture, rasterize)), (texture, (ops, texture, rasterize)),
                             (rasterize, (ops, texture, rasterize)), (lines, (lines, ops, rasterize)),
+                            (libm, (ops, texture, rasterize, libm)),
                             (k_lines, ()), (k_light, ())):
         before = stamp.sources_stamp(*modules)
         edited = Path(module.__file__)

@@ -88,7 +88,7 @@ from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
                                      _lanes_bilinear_fixed, _lanes_lod, _sample_lane, texture_tables)
 from softras.pipeline import clip as clip_stage
-from softras.pipeline import ops, rasterize, sampling, setup, texture, vertex
+from softras.pipeline import libm, ops, rasterize, sampling, setup, texture, vertex
 from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import check_sample_memory
 from softras.pipeline.texture import WRAP_CODES
@@ -582,6 +582,6 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
 # (`unorm8` and `blend_byte` of softras.pipeline.ops, `wrap_index` and
 # `ewa_texel` of softras.pipeline.texture, `_sample_box` of
 # softras.pipeline.rasterize).
-_SOURCES = sources_stamp(ops, texture, rasterize)
+_SOURCES = sources_stamp(ops, texture, rasterize, libm)
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
                for n_samples in DRIVER_SAMPLES for textured in (False, True)}

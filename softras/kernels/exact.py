@@ -51,7 +51,7 @@ from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _bilinear_float, _linear_float, _nan_max, texture_tables
-from softras.pipeline import ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
+from softras.pipeline import libm, ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle, _sample_box
 from softras.pipeline.texture import wrap_index
 from softras.scene import Scene
@@ -385,7 +385,7 @@ def _levels(rho2, last, mip):
     magnified = not rho2 > 1.0                     # lambda <= 0 (NaN: magnified)
     if mip == 0:
         return magnified, 0, 0, 0.0
-    lod = 0.5 * np.log2(rho2)
+    lod = 0.5 * libm._log2(rho2)
     if lod != lod:
         lod = -np.inf
     if mip == 1:                                   # ceil(lambda + 1/2) - 1 for lambda > 1/2, else 0
@@ -594,7 +594,7 @@ def _make_draw(sources: str):
 
 
 # The kernels, keyed on the kernels' sources and the stages' they call.
-_SOURCES = sources_stamp(rasterize, ops, texture)
+_SOURCES = sources_stamp(rasterize, ops, texture, libm)
 _TEXELS = _make_texels(_SOURCES)
 _scratch = _Scratch()
 _DRAW = _make_draw(_SOURCES)

@@ -28,6 +28,7 @@ from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix
 from softras.kernels.lanes import (_LF_LIT, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW, _LF_W,
                                    _LI_WORD)
 from softras.pipeline import fragment, render, vertex
+from softras.pipeline.libm import _power
 
 # The eye (world space) and the material's Blinn-Phong terms, as scalars.
 Lighting = namedtuple("Lighting", ["eye_x", "eye_y", "eye_z", "ambient", "diffuse", "specular", "shininess"])
@@ -81,22 +82,6 @@ def _unit(x, y, z):
 def _dot(ax, ay, az, bx, by, bz):
     """`softras.pipeline.fragment._dot`: ``(a0 b0 + a1 b1) + a2 b2``."""
     return (ax * bx + ay * by) + az * bz
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _power(x, y):
-    """``numpy.power(x, y)`` of float64 values as numpy computes it: its own
-    results for the exponents it special-cases (2: ``x * x``, 0.5:
-    ``sqrt(x)``, -1: ``1 / x``; C's ``pow`` gives other last bits there
-    now and then), C's ``pow`` otherwise (which numba calls too).
-    tests/test_fastpath.py checks a table of exponents against numpy."""
-    if y == 2.0:
-        return x * x
-    if y == 0.5:
-        return math.sqrt(x)
-    if y == -1.0:
-        return 1.0 / x
-    return x ** y
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

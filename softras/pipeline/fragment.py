@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from softras.pipeline import libm
+
 
 def premultiply(rgba: np.ndarray) -> np.ndarray:
     """Straight (..., 4) RGBA -> premultiplied (rgb * a, a)."""
@@ -98,7 +100,7 @@ def blinn_phong(base_rgb: np.ndarray, position: np.ndarray, normal: np.ndarray,
         half = _normalize(to_light + view)
         n_dot_h = np.maximum(_dot(normal, half), 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            spec = np.power(n_dot_h, material.shininess)
+            spec = libm.power(n_dot_h, material.shininess)
         term = np.asarray(light.color)[None, :] * (material.diffuse * n_dot_l[:, None] * base_rgb
                                                     + material.specular * spec[:, None])
         out = out + np.where((n_dot_l > 0)[:, None], term, 0.0)
@@ -228,7 +230,7 @@ def llvmpipe_pow(x: np.ndarray, y: float) -> np.ndarray:
     log2: exponent bits + ``z P(z^2)`` with z = (m - 1) / (m + 1) for the
     mantissa m in [1, 2).  exp2: x clamped to [-126.99999, 128],
     ``2^floor(x)`` in the exponent bits times a polynomial of the fraction.
-    (N,) float in, (N,) float32 out.  softras's pipeline uses numpy.power;
+    (N,) float in, (N,) float32 out.  softras's pipeline uses C's pow (`libm.power`);
     this emulation exists to measure what the approximation costs
     (docs/textures_and_lighting.md, "llvmpipe's pow").
     """

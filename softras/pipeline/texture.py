@@ -61,6 +61,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from softras.pipeline import libm
 from softras.scene import MIPMAP_FILTERS, Texture
 from softras.scene.texels import bilinear, linear_float_addresses, wrap  # noqa: F401  (wrap: texture.wrap)
 
@@ -201,7 +202,7 @@ def choose_levels(rho2: np.ndarray, min_filter: str, n_levels: int, gl: bool) ->
         ipart = ipart.astype(np.int64)
     else:
         with np.errstate(divide="ignore", invalid="ignore"):
-            lod = 0.5 * np.log2(rho2)
+            lod = 0.5 * libm.log2(rho2)
         lod = np.where(np.isnan(lod), -np.inf, lod)     # infinities kept: lambda = +inf is the last level
         if mip_nearest:
             # GL: d = ceil(lambda + 1/2) - 1 for lambda > 1/2, else 0 (halves round down).
