@@ -131,18 +131,17 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
         )
     cross = np.nonzero(crossing)[0]
     plane_mask = outside[indices[cross]].any(axis=1)            # (C, 6) planes to clip against
-    if precision != "gl" or policy != "llvmpipe":
-        return _clip_with_polygons(clip, indices, keep, cross, plane_mask, planes, precision)
-
-    # gl: the crossing triangles are clipped by a compiled kernel (bit for bit
-    # `clip_polygon`, see tests/stages/test_clip.py), in two passes (count,
-    # then write) so the output is exact-sized.
-    corners = np.ascontiguousarray(clip[indices[cross]])        # (C, 3, 4)
-    fan_counts = _clip_gl_kernel(corners, plane_mask, np.zeros(len(cross), np.int64),
-                                 np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
+    # The crossing triangles are clipped by a compiled kernel (bit for bit
+    # `clip_polygon`, whose loop `_clip_with_polygons` is the reference; see
+    # tests/stages/test_clip.py), in two passes (count, then write) so the
+    # output is exact-sized.
+    corners = np.ascontiguousarray(clip[indices[cross]], np.float64)    # (C, 3, 4)
+    f32 = precision == "gl"
+    fan_counts = _clip_kernel(corners, plane_mask, planes, f32, np.zeros(len(cross), np.int64),
+                              np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
     cross_clip = np.empty((int(fan_counts.sum()), 3, 4))
     cross_weights = np.empty((len(cross_clip), 3, 3))
-    _clip_gl_kernel(corners, plane_mask, fan_counts, cross_clip, cross_weights, True)
+    _clip_kernel(corners, plane_mask, planes, f32, fan_counts, cross_clip, cross_weights, True)
     return _in_draw_order(clip, indices, keep, cross, fan_counts, cross_clip, cross_weights)
 
 
@@ -189,8 +188,11 @@ def _classify(outside, finite, indices, keep, crossing):
 
 def _clip_with_polygons(clip, indices, keep, cross, plane_mask, planes, precision) -> ClippedTriangles:
     """The reference loop: `clip_polygon` per crossing triangle (cross (C,)
-    their indices, plane_mask (C, 6) the planes each crosses), its polygon
-    fanned, in draw order."""
+    their indices into indices (M, 3), keep (M,) the triangles passed
+    through, plane_mask (C, 6) the planes (of planes (6, 4)) each crosses),
+    its polygon fanned (v[k-1], v[k], v[0]), in draw order.  `clip_triangles`
+    gives the same bits with the compiled `_clip_kernel`; this loop stays as
+    what that kernel mirrors (tests/stages/test_clip.py)."""
     identity = np.eye(3)
     fan_counts = np.zeros(len(cross), np.int64)
     fans_clip, fans_weights = [np.zeros((0, 3, 4))], [np.zeros((0, 3, 3))]
@@ -205,100 +207,30 @@ def _clip_with_polygons(clip, indices, keep, cross, plane_mask, planes, precisio
                           np.concatenate(fans_weights))
 
 
-@numba.njit(cache=True, inline="always")
-def _copy_row(dst, i, src, k):
-    """dst[i] = src[k] for 2-D arrays, as a loop: numba's row assignment
-    compiles to a broadcasting copy that checks for overlap, and ten of them
-    made `_clip_gl_kernel` take 6 s to compile."""
-    for j in range(src.shape[1]):
-        dst[i, j] = src[k, j]
-
-
-@numba.njit(cache=True)
-def _clip_gl_kernel(corners, plane_mask, fan_counts, out_clip, out_weights, write):
-    """`clip_polygon` in float32 against the llvmpipe frustum planes, compiled.
-
-    corners : (C, 3, 4) clip-space triangles; plane_mask : (C, 6) bool, the
-    planes (FRUSTUM_PLANES order) each one is clipped against.  Count pass
-    (``write`` False): returns (C,) fan sizes.  Write pass: writes each fan
-    (v[k-1], v[k], v[0]) consecutively into out_clip (F, 3, 4) and
-    out_weights (F, 3, 3) and returns fan_counts unchanged.  Every float32
-    operation is the one `clip_polygon` performs, in the same order.
-    """
-    n = corners.shape[0]
-    counts = np.zeros(n, np.int64)
-    pts = np.empty((12, 4))
-    wts = np.empty((12, 3))
-    new_pts = np.empty((12, 4))
-    new_wts = np.empty((12, 3))
-    d = np.empty(12, np.float32)
-    at = 0
-    for c in range(n):
-        m = 3
-        for k in range(3):
-            for j in range(4):
-                pts[k, j] = corners[c, k, j]
-            for j in range(3):
-                wts[k, j] = 1.0 if j == k else 0.0
-        for p in range(6):
-            if not plane_mask[c, p] or m < 3:
-                continue
-            a, b, cz, dw = (FRUSTUM_PLANES[p, 0], FRUSTUM_PLANES[p, 1],
-                            FRUSTUM_PLANES[p, 2], FRUSTUM_PLANES[p, 3])
-            for k in range(m):
-                d[k] = np.float32(a * pts[k, 0] + b * pts[k, 1] + cz * pts[k, 2] + dw * pts[k, 3])
-            nm = 0
-            for i in range(1, m + 1):
-                prev = i - 1
-                cur = i % m
-                if d[prev] >= 0:
-                    _copy_row(new_pts, nm, pts, prev)
-                    _copy_row(new_wts, nm, wts, prev)
-                    nm += 1
-                if (d[prev] >= 0) != (d[cur] >= 0):
-                    if d[cur] < 0:
-                        out_i, in_i = cur, prev
-                    else:
-                        out_i, in_i = prev, cur
-                    if not -d[out_i] < d[in_i]:                         # start from the nearer end
-                        out_i, in_i = in_i, out_i
-                    t = d[out_i] / (d[out_i] - d[in_i])                 # float32
-                    for j in range(4):
-                        p_out = np.float32(pts[out_i, j])
-                        p_in = np.float32(pts[in_i, j])
-                        new_pts[nm, j] = np.float64(p_out + t * (p_in - p_out))
-                    t64 = np.float64(t)
-                    for j in range(3):
-                        new_wts[nm, j] = wts[out_i, j] + t64 * (wts[in_i, j] - wts[out_i, j])
-                    nm += 1
-            m = nm
-            for k in range(m):
-                _copy_row(pts, k, new_pts, k)
-                _copy_row(wts, k, new_wts, k)
-        fans = max(m - 2, 0)
-        counts[c] = fans
-        if write:
-            for k in range(2, m):
-                for corner, row in enumerate((k - 1, k, 0)):
-                    _copy_row(out_clip[at], corner, pts, row)
-                    _copy_row(out_weights[at], corner, wts, row)
-                at += 1
-    return counts
-
-
 def clip_polygon(points: np.ndarray, weights: np.ndarray, planes: np.ndarray,
                  precision: str) -> tuple[np.ndarray, np.ndarray]:
     """Sutherland-Hodgman clipping of one convex polygon against planes in order.
 
     points : (n, 4) clip-space vertices; weights : (n, k) attributes carried
-    along (interpolated with the same t).  Returns the clipped (points,
-    weights); fewer than 3 points means nothing is left.
+    along (interpolated with the same t); planes : (P, 4) coefficients, in
+    the order to clip against them; precision : "gl" (distances, t and the
+    new points in float32) or anything else (float64).  Returns the clipped
+    (points, weights); fewer than 3 points means nothing is left.
+
+    This is the readable reference: `clip_triangles` runs its compiled
+    mirror `_clip_kernel` (the same operations in the same order), and
+    tests/stages/test_clip.py checks the two bit for bit.
     """
     f32 = precision == "gl"
     for plane in planes:
         if len(points) < 3:
             break
-        d = points @ plane
+        # a x + b y + c z + d w, summed left to right, each product rounded
+        # (no fused multiply-add): the operations `_clip_kernel` does.
+        # (`points @ plane` may go through BLAS, in another order or fused;
+        # for the frustum and guard-band planes, two non-zero terms of which
+        # one is exact, every order gives these bits.)
+        d = points[:, 0] * plane[0] + points[:, 1] * plane[1] + points[:, 2] * plane[2] + points[:, 3] * plane[3]
         if f32:
             d = d.astype(np.float32)
         new_points, new_weights = [], []
@@ -333,6 +265,110 @@ def clip_polygon(points: np.ndarray, weights: np.ndarray, planes: np.ndarray,
         points = np.array(new_points).reshape(-1, 4)
         weights = np.array(new_weights).reshape(-1, weights.shape[1])
     return points, weights
+
+
+@numba.njit(cache=True, inline="always")
+def _copy_row(dst, i, src, k):
+    """dst[i] = src[k] for 2-D arrays, as a loop: numba's row assignment
+    compiles to a broadcasting copy that checks for overlap, and ten of them
+    made the clipper's kernel take 6 s to compile."""
+    for j in range(src.shape[1]):
+        dst[i, j] = src[k, j]
+
+
+@numba.njit(cache=True)
+def _clip_kernel(corners, plane_mask, planes, f32, fan_counts, out_clip, out_weights, write):
+    """`clip_polygon` compiled: each triangle against its planes, fanned.
+
+    corners : (C, 3, 4) float64 clip-space triangles (identity weights);
+    plane_mask : (C, P) bool, which of planes (P, 4) (in that order) each
+    one is clipped against; f32 : True for precision "gl" (distances, t and
+    the new points in float32), False for "exact" (float64).  Count pass
+    (``write`` False): returns (C,) fan sizes.  Write pass: writes each fan
+    (v[k-1], v[k], v[0]) consecutively into out_clip (F, 3, 4) and
+    out_weights (F, 3, 3), F = fan_counts.sum() (the count pass's result),
+    and returns the same sizes again.
+
+    Every operation is the one `clip_polygon` performs, in the same order,
+    so the bits are the same: tests/stages/test_clip.py compares
+    `clip_triangles` with `clip_polygon` per triangle in both precisions and
+    both policies (vertices 1e7 to 1e308 outside, w near 0 or negative,
+    distances that underflow or overflow), and this kernel with it against
+    random planes (where the distance's order of summation shows).
+    """
+    n = corners.shape[0]
+    counts = np.zeros(n, np.int64)
+    # A convex polygon gains at most one vertex per plane, but a rounded or
+    # NaN distance can make its in/out pattern alternate: n vertices become
+    # at most 3n // 2 (3, 4, 6, 9, 13, 19, 28 over six planes).
+    size = 3
+    for p in range(planes.shape[0]):
+        size = size * 3 // 2
+    pts = np.empty((size, 4))
+    wts = np.empty((size, 3))
+    new_pts = np.empty((size, 4))
+    new_wts = np.empty((size, 3))
+    d = np.empty(size)                  # float64; holds float32 values when f32
+    at = 0
+    for c in range(n):
+        m = 3
+        for k in range(3):
+            for j in range(4):
+                pts[k, j] = corners[c, k, j]
+            for j in range(3):
+                wts[k, j] = 1.0 if j == k else 0.0
+        for p in range(planes.shape[0]):
+            if not plane_mask[c, p] or m < 3:
+                continue
+            a, b, cz, dw = planes[p, 0], planes[p, 1], planes[p, 2], planes[p, 3]
+            for k in range(m):
+                dist = a * pts[k, 0] + b * pts[k, 1] + cz * pts[k, 2] + dw * pts[k, 3]
+                if f32:
+                    d[k] = np.float32(dist)
+                else:
+                    d[k] = dist
+            nm = 0
+            for i in range(1, m + 1):
+                prev = i - 1
+                cur = i % m
+                if d[prev] >= 0:
+                    _copy_row(new_pts, nm, pts, prev)
+                    _copy_row(new_wts, nm, wts, prev)
+                    nm += 1
+                if (d[prev] >= 0) != (d[cur] >= 0):
+                    if d[cur] < 0:
+                        out_i, in_i = cur, prev
+                    else:
+                        out_i, in_i = prev, cur
+                    if not -d[out_i] < d[in_i]:                         # start from the nearer end
+                        out_i, in_i = in_i, out_i
+                    if f32:
+                        d_out, d_in = np.float32(d[out_i]), np.float32(d[in_i])
+                        t32 = d_out / (d_out - d_in)                    # float32
+                        for j in range(4):
+                            p_out = np.float32(pts[out_i, j])
+                            p_in = np.float32(pts[in_i, j])
+                            new_pts[nm, j] = np.float64(p_out + t32 * (p_in - p_out))
+                        t = np.float64(t32)
+                    else:
+                        t = d[out_i] / (d[out_i] - d[in_i])
+                        for j in range(4):
+                            new_pts[nm, j] = pts[out_i, j] + t * (pts[in_i, j] - pts[out_i, j])
+                    for j in range(3):
+                        new_wts[nm, j] = wts[out_i, j] + t * (wts[in_i, j] - wts[out_i, j])
+                    nm += 1
+            m = nm
+            for k in range(m):
+                _copy_row(pts, k, new_pts, k)
+                _copy_row(wts, k, new_wts, k)
+        counts[c] = max(m - 2, 0)
+        if write:
+            for k in range(2, m):
+                for corner, row in enumerate((k - 1, k, 0)):
+                    _copy_row(out_clip[at], corner, pts, row)
+                    _copy_row(out_weights[at], corner, wts, row)
+                at += 1
+    return counts
 
 
 @numba.njit(cache=True)
@@ -391,13 +427,17 @@ def triangle_list_gl(clip, indices):
             for p in range(6):
                 mask[k, p] = (union >> p) & 1
             for v in range(3):
-                corners[k, v] = clip[indices[t, v]]
+                _copy_row(corners[k], v, clip, indices[t, v])        # (a loop: see `_copy_row`)
             k += 1
-    fans = _clip_gl_kernel(corners, mask, np.zeros(n_cross, np.int64),
-                           np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
+    # (The flags as bool values, not literals, and the planes a writable
+    # copy: the types `clip_triangles` passes, so one compiled `_clip_kernel`
+    # serves both.)
+    planes, f32 = FRUSTUM_PLANES.copy(), np.bool_(True)
+    fans = _clip_kernel(corners, mask, planes, f32, np.zeros(n_cross, np.int64),
+                        np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), np.bool_(False))
     fan_clip = np.empty((fans.sum(), 3, 4))
     fan_weights = np.empty((fans.sum(), 3, 3))
-    _clip_gl_kernel(corners, mask, fans, fan_clip, fan_weights, True)
+    _clip_kernel(corners, mask, planes, f32, fans, fan_clip, fan_weights, np.bool_(True))
     total = 0
     k = 0
     for t in range(m):

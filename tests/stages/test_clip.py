@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from softras.pipeline import rasterize, setup
-from softras.pipeline.clip import FRUSTUM_PLANES, clip_polygon, clip_triangles, plane_distances, triangle_list_gl
+from softras.pipeline.clip import (FRUSTUM_PLANES, _classify, _clip_kernel, _clip_with_polygons, clip_planes,
+                                  clip_polygon, clip_triangles, plane_distances, triangle_list_gl)
 
 
 def _tri(*points):
@@ -72,13 +73,15 @@ def test_all_six_planes_clip_in_llvmpipe_policy_but_not_guard_band():
 # ----------------------------------------------------------------------------- the compiled clipper
 
 
-def _reference_clip(clip, indices):
-    """`clip_polygon` (the readable loop) per triangle, as the llvmpipe policy
-    uses it: each triangle with a vertex outside a plane (float32 distance
-    < 0) is clipped against those planes and fanned (v[k-1], v[k], v[0]);
-    triangles outside one plane or with a non-finite vertex are dropped, the
-    others passed through."""
-    outside = plane_distances(clip, FRUSTUM_PLANES, "gl") < 0
+def _reference_clip(clip, indices, precision="gl", planes=FRUSTUM_PLANES):
+    """`clip_polygon` (the readable loop) per triangle, as `clip_triangles`
+    uses it (by default gl precision, the llvmpipe policy's planes): each
+    triangle with a vertex outside one of planes (6, 4) (distance < 0, in
+    float32 for "gl") is clipped against those planes and fanned (v[k-1],
+    v[k], v[0]); triangles outside one plane or with a non-finite vertex are
+    dropped, the others passed through.  Returns clip (T, 3, 4), weights
+    (T, 3, 3), source (T,)."""
+    outside = plane_distances(clip, planes, precision) < 0
     out_clip, out_weights, out_source = [], [], []
     for t, tri in enumerate(indices):
         if outside[tri].all(axis=0).any() or not np.isfinite(clip[tri]).all():
@@ -89,7 +92,7 @@ def _reference_clip(clip, indices):
             out_weights.append(np.eye(3))
             out_source.append(t)
             continue
-        points, weights = clip_polygon(clip[tri], np.eye(3), FRUSTUM_PLANES[mask], "gl")
+        points, weights = clip_polygon(clip[tri], np.eye(3), planes[mask], precision)
         for k in range(2, len(points)):
             out_clip.append(points[[k - 1, k, 0]])
             out_weights.append(weights[[k - 1, k, 0]])
@@ -124,7 +127,7 @@ def _crossing_triangles(rng, n):
 
 def test_compiled_clipper_equals_clip_polygon():
     """gl precision, llvmpipe policy: `clip_triangles` (the compiled kernel
-    `_clip_gl_kernel`) and `triangle_list_gl` (the fast path's) give the
+    `_clip_kernel`) and `triangle_list_gl` (the fast path's) give the
     triangles, weights and order of `clip_polygon` bit for bit, on 2,000
     triangles through all six planes (vertices on planes, 1e7 outside, w < 0,
     edges whose ends lie at distances d and -d from a plane)."""
@@ -149,6 +152,133 @@ def test_compiled_clipper_equals_clip_polygon():
     np.testing.assert_array_equal(fan_clip[slot[~passed]], ref_clip[~passed])
     np.testing.assert_array_equal(fan_weights[slot[~passed]], ref_weights[~passed])
     assert (ref_weights[passed] == np.eye(3)).all()
+
+
+def _wild_triangles(rng, n, planes):
+    """`_crossing_triangles`, made wilder: (V, 4) clip-space vertices and
+    (n, 3) indices.  Some vertices have float64 values (not float32 ones),
+    w near 0 (0, -0, 1e-30, 1e-300, the smallest subnormal, either sign),
+    all four coordinates 1e-38 to 1e-320 (float32 distances underflow to
+    +-0), a coordinate 1e30 to 1e308 (float32 distances and points
+    overflow: inf and NaN), or an inf or NaN coordinate (culled); in some
+    triangles vertex 1 lies at distance -d (1 + 1e-9 e), |e| < 1, from one
+    of planes (P, 4), vertex 0 at d (a tie for the clipper's start vertex in
+    float32, not in float64); some triangles are scaled to coordinates up
+    to 2e307 to 1.7e308 (float64 distances and differences overflow too); a
+    quarter of the triangles share vertices (random indices, some repeated:
+    degenerate triangles)."""
+    clip, indices = _crossing_triangles(rng, n)
+    v = len(clip)
+    noisy = rng.random(v) < 0.4
+    clip[noisy] *= 1 + rng.uniform(-1e-3, 1e-3, size=(int(noisy.sum()), 4))
+    near_tie = indices[rng.random(n) < 0.2]                       # (T, 3) vertex 1 almost mirrors vertex 0
+    plane = planes[rng.integers(len(planes), size=len(near_tie))]
+    d0 = (clip[near_tie[:, 0]] * plane).sum(axis=1, keepdims=True)
+    factor = 2 + 1e-9 * rng.uniform(-1, 1, size=(len(near_tie), 1))
+    clip[near_tie[:, 1]] = clip[near_tie[:, 0]] - factor * d0 * plane / (plane * plane).sum(axis=1, keepdims=True)
+    small = rng.random(v) < 0.03
+    clip[small] *= 10.0 ** -rng.uniform(38, 320, size=(int(small.sum()), 1))
+    tiny = np.nonzero(rng.random(v) < 0.1)[0]
+    clip[tiny, 3] = rng.choice([0.0, -0.0, 1e-30, -1e-30, 1e-300, -1e-300, 5e-324, -5e-324, 1e-8, -1e-8], len(tiny))
+    far = np.nonzero(rng.random(v) < 0.04)[0]
+    with np.errstate(over="ignore", invalid="ignore"):             # (a few overflow to inf: culled)
+        clip[far, rng.integers(4, size=len(far))] *= 10.0 ** rng.uniform(30, 308, size=len(far))
+        brink = indices[rng.random(n) < 0.05]                     # whole triangles near float64's largest
+        largest = np.maximum(np.abs(clip[brink]).max(axis=(1, 2), keepdims=True), 1.0)
+        clip[brink] *= rng.uniform(0.2, 1.7, size=(len(brink), 1, 1)) * (1e308 / largest)
+    bad = np.nonzero(rng.random(v) < 0.02)[0]
+    clip[bad, rng.integers(4, size=len(bad))] = rng.choice([np.inf, -np.inf, np.nan], len(bad))
+    shared = rng.random(n) < 0.25
+    indices[shared] = rng.integers(v, size=(int(shared.sum()), 3))
+    return clip, indices
+
+
+def _polygon_loop(clip, indices, precision, planes):
+    """`clip_triangles` with the crossing triangles through the module's
+    reference loop `_clip_with_polygons` instead of its kernel."""
+    outside = plane_distances(clip, planes, precision) < 0
+    keep, crossing = np.empty(len(indices), bool), np.empty(len(indices), bool)
+    _classify(outside, np.isfinite(clip).all(axis=1), indices, keep, crossing)
+    cross = np.nonzero(crossing)[0]
+    return _clip_with_polygons(clip, indices, keep, cross, outside[indices[cross]].any(axis=1), planes, precision)
+
+
+def _same_bits(ours, reference, what):
+    """ours and reference equal in shape, value (NaN where NaN) and sign bit."""
+    assert ours.shape == reference.shape, f"{what}: shape {ours.shape} != {reference.shape}"
+    assert np.array_equal(ours, reference, equal_nan=True), f"{what}: {int((ours != reference).sum())} values differ"
+    assert np.array_equal(np.signbit(ours), np.signbit(reference)), f"{what}: sign bits differ"
+
+
+@pytest.mark.parametrize("policy", ["llvmpipe", "guard_band"])
+@pytest.mark.parametrize("precision", ["gl", "exact"])
+def test_compiled_clipper_equals_clip_polygon_in_every_precision_and_policy(precision, policy):
+    """`clip_triangles` (the compiled `_clip_kernel`) and the module's
+    reference loop `_clip_with_polygons` give the triangles, sources and
+    weights of `clip_polygon` per triangle bit for bit, sign bits of zeros
+    and NaNs included, in either precision and policy: 30 meshes of
+    200 triangles (`_wild_triangles`: through every plane, vertices on planes
+    and 1e7 to 1e308 outside, w near 0 or negative, inf and NaN, overflowing
+    distances), each on a viewport whose guard band is 1 to 32 times the
+    view (scales such as 16.4 and 27.26, whose products with w round)."""
+    crossing = generated = nonfinite = negative_zeros = 0
+    for seed in range(30):
+        rng = np.random.default_rng([20261126, seed])
+        width, height = [(512, 512), (999, 601), (16384, 20000), (3000, 7000)][seed % 4]
+        planes = clip_planes(policy, width, height)
+        clip, indices = _wild_triangles(rng, 200, planes)
+        with np.errstate(all="ignore"):
+            ref_clip, ref_weights, ref_source = _reference_clip(clip, indices, precision, planes)
+            out = clip_triangles(clip, indices, precision=precision, policy=policy, width=width, height=height)
+            loop = _polygon_loop(clip, indices, precision, planes)
+            outside = plane_distances(clip, planes, precision)[indices] < 0
+        for result, name in ((out, "clip_triangles"), (loop, "_clip_with_polygons")):
+            _same_bits(result.source, ref_source, f"seed {seed}, {name}: source")
+            _same_bits(result.clip, ref_clip, f"seed {seed}, {name}: clip")
+            _same_bits(result.weights, ref_weights, f"seed {seed}, {name}: weights")
+        crossing += (outside.any(axis=(1, 2)) & ~outside.all(axis=1).any(axis=1)
+                     & np.isfinite(clip[indices]).all(axis=(1, 2))).sum()
+        generated += out.generated.sum()
+        nonfinite += (~np.isfinite(out.clip)).any(axis=(1, 2)).sum()
+        negative_zeros += ((out.clip == 0) & np.signbit(out.clip)).sum()
+    assert crossing > 1500 and generated > 3000                   # the kernel, not the pass-through, decides
+    assert negative_zeros > 0
+    assert nonfinite > 0                                          # overflow (inf, NaN) reached the kernel
+
+
+@pytest.mark.parametrize("precision", ["gl", "exact"])
+def test_clip_kernel_equals_clip_polygon_for_any_planes(precision):
+    """`_clip_kernel` itself, against planes whose four coefficients are all
+    inexact (so the order of the distance's sum and any fused multiply-add
+    would show, unlike with the frustum and guard-band planes): 20 sets of
+    six random planes, 100 `_wild_triangles` (the finite ones) each, each
+    triangle clipped against a random subset of them in order; the fan
+    sizes, corners and weights are `clip_polygon`'s bit for bit."""
+    generated = 0
+    for seed in range(20):
+        rng = np.random.default_rng([20261127, seed])
+        planes = rng.standard_normal((6, 4))
+        planes[:, 3] = np.abs(planes[:, 3]) + 0.5                    # the origin (0, 0, 0, 1) inside
+        clip, indices = _wild_triangles(rng, 100, planes)
+        corners = clip[indices][np.isfinite(clip[indices]).all(axis=(1, 2))]
+        mask = rng.random((len(corners), 6)) < 0.6
+        with np.errstate(all="ignore"):
+            counts = _clip_kernel(corners, mask, planes, precision == "gl", np.zeros(len(corners), np.int64),
+                                  np.zeros((0, 3, 4)), np.zeros((0, 3, 3)), False)
+            fans_clip, fans_weights = np.empty((counts.sum(), 3, 4)), np.empty((counts.sum(), 3, 3))
+            _clip_kernel(corners, mask, planes, precision == "gl", counts, fans_clip, fans_weights, True)
+            ref_counts, ref_clip, ref_weights = [], [np.zeros((0, 3, 4))], [np.zeros((0, 3, 3))]
+            for triangle, planes_used in zip(corners, mask):
+                points, weights = clip_polygon(triangle, np.eye(3), planes[planes_used], precision)
+                fan = [[k - 1, k, 0] for k in range(2, len(points))]
+                ref_counts.append(len(fan))
+                ref_clip += [points[fan]] if fan else []
+                ref_weights += [weights[fan]] if fan else []
+        _same_bits(counts, np.array(ref_counts, np.int64), f"seed {seed}: fan sizes")
+        _same_bits(fans_clip, np.concatenate(ref_clip), f"seed {seed}: clip")
+        _same_bits(fans_weights, np.concatenate(ref_weights), f"seed {seed}: weights")
+        generated += (fans_weights.max(axis=2) != 1).sum()
+    assert generated > 2000
 
 
 # ----------------------------------------------------------------------------- the viewport transform's rounding
