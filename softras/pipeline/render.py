@@ -274,15 +274,15 @@ def check_sample_memory(scene: Scene, n_samples: int, bytes_per_sample: int) -> 
                          f"{MAX_SAMPLE_BYTES / 2**30:.0f} GiB): use fewer samples or a smaller image")
 
 
-def render_samples(scene: Scene, job: Job, triangles=None, framebuffer=None) -> np.ndarray:
+def render_samples(scene: Scene, job: Job, triangles=None, framebuffer=None, lines=None) -> np.ndarray:
     """The per-sample colour buffer (H, W, S, 4) of every draw, GL's y-up rows,
     premultiplied: float64 k/255 values for rgba8 in gl precision, float32 for
     rgba32f in gl precision, float64 in exact (`render_pass`, in passes of
-    at most MAX_PASS_SAMPLES samples; triangles and framebuffer as
+    at most MAX_PASS_SAMPLES samples; triangles, framebuffer and lines as
     `render_pass`')."""
     check_sample_memory(scene, len(job.positions), SAMPLE_BYTES)
-    return sampling.in_passes(job.positions,
-                              lambda positions: render_pass(scene, Pass.of(job, positions), triangles, framebuffer))
+    return sampling.in_passes(job.positions, lambda positions: render_pass(scene, Pass.of(job, positions),
+                                                                           triangles, framebuffer, lines))
 
 
 def resolve(job: Job, color: np.ndarray) -> np.ndarray:
@@ -334,7 +334,7 @@ def vertex_base_colors(scene: Scene, draw) -> np.ndarray:
     return np.concatenate([lit, base[:, 3:]], axis=1)
 
 
-def render_pass(scene: Scene, inputs: "Pass", triangles=None, framebuffer=None) -> np.ndarray:
+def render_pass(scene: Scene, inputs: "Pass", triangles=None, framebuffer=None, lines=None) -> np.ndarray:
     """Render every draw at the pass's <= 32 sample positions (`Pass`).
 
     Returns the per-sample colour buffer (H, W, S, 4) premultiplied, GL's
@@ -346,11 +346,13 @@ def render_pass(scene: Scene, inputs: "Pass", triangles=None, framebuffer=None) 
     framebuffer : the function that makes the pass's cleared buffers, with
     `new_pass_framebuffer`'s arguments and result (its default; the exact
     kernel's reused ones, `softras.kernels.exact.reused_framebuffer`).
+    lines : the function that draws a line draw, with `draw_lines`'
+    arguments (default `draw_lines`).
     """
     color, depth = (framebuffer or new_pass_framebuffer)(scene, inputs)
     for draw in ordered_draws(scene):
         if draw.mesh.primitive == "lines":
-            draw_lines(scene, draw, inputs, color, depth)
+            (lines or draw_lines)(scene, draw, inputs, color, depth)
         else:
             (triangles or draw_triangles)(scene, draw, inputs, color, depth)
     return color
