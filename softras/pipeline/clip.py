@@ -91,10 +91,23 @@ def plane_distances(clip: np.ndarray, planes: np.ndarray, precision: str) -> np.
     module's ``dot4`` computes it (for the frustum planes this is ``w - x``
     and so on, one rounding).
     """
-    d = clip @ planes.T
+    d = _distances(np.ascontiguousarray(clip, np.float64), np.ascontiguousarray(planes, np.float64))
     if precision == "gl":
         d = d.astype(np.float32).astype(np.float64)
     return d
+
+
+@numba.njit(cache=True)
+def _distances(clip, planes):
+    """(N, 4) points . (P, 4) planes -> (N, P) float64, summed as
+    `clip_polygon` sums (``((x a + y b) + z c) + w d``), not by BLAS (see
+    `softras.pipeline.vertex._transform`)."""
+    out = np.empty((clip.shape[0], planes.shape[0]))
+    for v in range(clip.shape[0]):
+        x, y, z, w = clip[v, 0], clip[v, 1], clip[v, 2], clip[v, 3]
+        for p in range(planes.shape[0]):
+            out[v, p] = ((x * planes[p, 0] + y * planes[p, 1]) + z * planes[p, 2]) + w * planes[p, 3]
+    return out
 
 
 def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "gl",
@@ -124,11 +137,9 @@ def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "g
 
     if not crossing.any():
         kept = np.nonzero(keep)[0]
-        return ClippedTriangles(
-            clip=clip[indices[kept]],
-            source=kept.astype(np.int64),
-            weights=np.broadcast_to(np.eye(3), (len(kept), 3, 3)).copy(),
-        )
+        out_clip, out_weights = np.empty((len(kept), 3, 4)), np.empty((len(kept), 3, 3))
+        _pass_through(clip, indices, kept, np.arange(len(kept)), out_clip, out_weights)
+        return ClippedTriangles(clip=out_clip, source=kept.astype(np.int64), weights=out_weights)
     cross = np.nonzero(crossing)[0]
     plane_mask = outside[indices[cross]].any(axis=1)            # (C, 6) planes to clip against
     # The crossing triangles are clipped by a compiled kernel (bit for bit
@@ -150,7 +161,6 @@ def _in_draw_order(clip, indices, keep, cross, fan_counts, cross_clip, cross_wei
     bool) as it is, each crossing one (cross (C,) their indices) replaced by
     its fan of fan_counts (C,) triangles, the fans' corners and weights
     cross_clip (sum, 3, 4) and cross_weights (sum, 3, 3) one after another."""
-    identity = np.eye(3)
     counts = keep.astype(np.int64)
     counts[cross] = fan_counts
     starts = np.zeros(len(counts), np.int64)
@@ -160,13 +170,27 @@ def _in_draw_order(clip, indices, keep, cross, fan_counts, cross_clip, cross_wei
     out_weights = np.empty((total, 3, 3))
     out_source = np.repeat(np.arange(len(indices), dtype=np.int64), counts)
     kept = np.nonzero(keep)[0]
-    out_clip[starts[kept]] = clip[indices[kept]]
-    out_weights[starts[kept]] = identity
+    _pass_through(clip, indices, kept, starts[kept], out_clip, out_weights)
     slots = (np.repeat(starts[cross] - np.cumsum(fan_counts) + fan_counts, fan_counts)
              + np.arange(len(cross_clip)))
     out_clip[slots] = cross_clip
     out_weights[slots] = cross_weights
     return ClippedTriangles(out_clip, out_source, out_weights)
+
+
+@numba.njit(cache=True)
+def _pass_through(clip, indices, kept, slots, out_clip, out_weights):
+    """The triangles passed through unchanged: for each i, the corners of
+    triangle kept[i] (rows indices[kept[i]] of clip (N, 4)) into
+    out_clip[slots[i]] (3, 4), and identity weights into out_weights[slots[i]]
+    (3, 3).  (numpy's gather and broadcast copy took 4-5 ms for 70k.)"""
+    for i in range(kept.shape[0]):
+        t, slot = kept[i], slots[i]
+        for k in range(3):
+            for j in range(4):
+                out_clip[slot, k, j] = clip[indices[t, k], j]
+            for j in range(3):
+                out_weights[slot, k, j] = 1.0 if j == k else 0.0
 
 
 @numba.njit(cache=True)

@@ -38,33 +38,43 @@ def to_clip(positions: np.ndarray, mvp: np.ndarray, precision: str = "gl") -> np
     every value is exactly a float32.
     """
     if precision == "gl":
-        return _to_clip_float32(np.ascontiguousarray(positions, np.float32), mvp.astype(np.float32))
-    homogeneous = np.concatenate([positions.astype(np.float64), np.ones((len(positions), 1))], axis=1)
-    return homogeneous @ mvp.T
+        return _transform(np.ascontiguousarray(positions, np.float32), mvp.astype(np.float32))
+    return _transform(np.ascontiguousarray(positions, np.float64), np.ascontiguousarray(mvp, np.float64))
 
 
+# The transforms are loops of our own, not numpy's matrix product: that goes
+# through BLAS, whose order of summation and fused multiply-adds depend on the
+# CPU, and whose threads, spinning after a product, took the cores from the
+# compiled kernels that run next (the 71k scan in exact precision: 60-73 ms
+# a render with one BLAS thread, 80-106 ms with two).
 @numba.njit(cache=True)
-def _to_clip_float32(p, m):
-    """(N, 3) float32 positions, (4, 4) float32 matrix -> (N, 4) float64 clip
-    positions, each row ``((m[:, 0] x + m[:, 1] y) + m[:, 2] z) + m[:, 3]``
-    in float32 (no fused multiply-add: numba does not contract)."""
-    out = np.empty((p.shape[0], 4))
+def _transform(p, m):
+    """(N, 3) positions and an (R, 4) matrix of the same type -> (N, R)
+    float64, each row ``((m[:, 0] x + m[:, 1] y) + m[:, 2] z) + m[:, 3]`` in
+    that type: float32 in gl precision, as GLSL sums ``u_mvp * vec4(p, 1)``
+    column by column; float64 otherwise (no fused multiply-add: numba does
+    not contract)."""
+    out = np.empty((p.shape[0], m.shape[0]))
     for v in range(p.shape[0]):
         x, y, z = p[v, 0], p[v, 1], p[v, 2]
-        for r in range(4):
+        for r in range(m.shape[0]):
             out[v, r] = np.float64(((m[r, 0] * x + m[r, 1] * y) + m[r, 2] * z) + m[r, 3])
     return out
 
 
 def world_positions(positions: np.ndarray, world: np.ndarray) -> np.ndarray:
-    """(N, 3) model positions -> (N, 3) world positions (lighting space)."""
-    return positions @ world[:3, :3].T + world[:3, 3]
+    """(N, 3) model positions -> (N, 3) world positions (lighting space):
+    ``M @ [x, y, z, 1]`` for the world matrix's top rows (`_transform`)."""
+    return _transform(np.ascontiguousarray(positions, np.float64), np.ascontiguousarray(world[:3], np.float64))
 
 
 def world_normals(normals: np.ndarray, world: np.ndarray, unit: bool = True) -> np.ndarray:
     """(N, 3) model normals -> world normals by the inverse-transpose of the
-    world matrix's 3x3 (normalised when ``unit``)."""
-    n = normals @ np.linalg.inv(world[:3, :3])           # == (inv(M)^T @ n^T)^T
+    world matrix's 3x3 (normalised when ``unit``), ``inv(M)^T @ n`` summed
+    as `_transform` sums (its translation column 0)."""
+    rows = np.zeros((3, 4))
+    rows[:, :3] = np.linalg.inv(world[:3, :3]).T
+    n = _transform(np.ascontiguousarray(normals, np.float64), rows)
     return n / np.linalg.norm(n, axis=1, keepdims=True) if unit else n
 
 
