@@ -102,6 +102,12 @@ def cache_dir() -> Path:
     their compiled code."""
     if numba.config.CACHE_DIR:
         return Path(numba.config.CACHE_DIR)
+    return _own_cache_dir()
+
+
+@functools.cache
+def _own_cache_dir() -> Path:
+    # (Once: resolving the path took 0.1 ms, asked for by every render.)
     return Path(__file__).resolve().parent / "__pycache__"
 
 
