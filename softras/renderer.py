@@ -5,9 +5,9 @@ sample count and pattern) that uses only what `softras.kernels` implements
 is drawn by their fused per-draw kernel, everything else by the readable stages of
 `softras.pipeline`; the two give the same bytes (tests/test_fastpath.py).
 In exact precision, triangle draws take the exact kernel
-(`softras.kernels.exact`) and the draws it leaves out (lines, normal and
-bump maps, anisotropic filtering) the stages, into the same buffers
-(tests/test_exact_path.py).  Kernels not compiled yet are compiled by a
+(`softras.kernels.exact`), line draws `softras.kernels.exact_lines`, and the
+draws they leave out (normal and bump maps, anisotropic filtering) the
+stages, into the same buffers (tests/test_exact_path.py).  Kernels not compiled yet are compiled by a
 background process while the stages draw (`softras.kernels.prepare`).
 `render` adds the choice of backend ("soft" or "gl", i.e. glref) behind
 `softras.render`.

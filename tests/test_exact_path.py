@@ -7,8 +7,9 @@ one-ulp difference in any sum or product fails them.  The scenes are the
 conformance scenes and the seeded random scenes of tests/test_fastpath.py
 (every depth function and blend equation, culling, triangles crossing every
 clip plane, lit with every shading, textured with every filter and wrap,
-alpha-tested), with lines and the draws the kernel leaves to the stages
-between them (into the same buffers).
+alpha-tested), with lines (the exact line kernel, `softras.kernels.exact_lines`,
+also tests/test_exact_lines.py) and the draws the kernel leaves to the
+stages between them (into the same buffers).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 import pytest
 
 import softras
-from softras.kernels import exact
+from softras.kernels import exact, exact_lines
 from softras.pipeline import render as stages
 from softras.pipeline import sampling
 from softras.renderer import render_scene
@@ -137,22 +138,23 @@ def test_any_band_height_gives_the_same_samples(band_rows, monkeypatch):
 
 def routes(monkeypatch) -> list:
     """The list that each draw of a render appends its route to: "kernel"
-    (`exact.set_up_draw`, for `exact._DRAW`), "stages" or "lines" (their
-    per-draw functions; none of them draws)."""
+    (`exact.set_up_draw`, for `exact._DRAW`), "lines" (`exact_lines.draw_lines`),
+    "stages" or "stage lines" (their per-draw functions; none of them draws)."""
     drawn = []
     set_up = exact.set_up_draw
     monkeypatch.setattr(exact, "set_up_draw", lambda *args: (drawn.append("kernel"), set_up(*args))[1])
     monkeypatch.setattr(exact, "_DRAW", lambda *args: None)
-    monkeypatch.setattr(stages, "draw_lines", lambda *args: drawn.append("lines"))
+    monkeypatch.setattr(exact_lines, "draw_lines", lambda *args: drawn.append("lines"))
+    monkeypatch.setattr(stages, "draw_lines", lambda *args: drawn.append("stage lines"))
     monkeypatch.setattr(stages, "draw_triangles", lambda *args: drawn.append("stages"))
     return drawn
 
 
 @pytest.mark.parametrize("options", [{}, {"texture_filter": "ewa"}, {"texture_bounds": "hi"}, {"anisotropy": 4}])
 def test_which_draws_take_the_kernel(options, monkeypatch):
-    """Lines, anisotropic filtering, the filters beyond GL's, texture bounds
-    and normal or bump maps take the stages' per-draw functions; the rest,
-    textured or not, the kernel."""
+    """Lines take the exact line kernel; anisotropic filtering, the filters
+    beyond GL's, texture bounds and normal or bump maps the stages' per-draw
+    functions; the rest, textured or not, the kernel."""
     data = random_line_scene(3)
     textured = random_scene(5, textured=True)
     data["nodes"] += textured["nodes"][:2]

@@ -145,13 +145,13 @@ from pathlib import Path
 import numba
 sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
 import softras
-from softras.kernels import exact, interpolate, light, prepare, setup
+from softras.kernels import exact, exact_lines, interpolate, light, prepare, setup
 from softras.pipeline import clip
 from softras.renderer import render_scene
 from test_fastpath import lit_scene, random_line_scene, random_scene
 
 prepare.cache_dir = lambda: Path({str(tmp_path)!r})
-modules = (exact, interpolate, light, setup, clip)
+modules = (exact, exact_lines, interpolate, light, setup, clip)
 def compiled():
     return {{f"{{m.__name__}}.{{n}}": len(d.signatures) for m in modules for n, d in vars(m).items()
              if isinstance(d, numba.core.registry.CPUDispatcher)}}
@@ -171,6 +171,7 @@ print(json.dumps([before, compiled()]))
     before, after = json.loads(done.stdout.splitlines()[-1])
     for kernel in ("_DRAW", "_setup", "_corners", "_resolve_box"):           # (called from Python)
         assert before[f"softras.kernels.exact.{kernel}"] >= 1, f"the preparation did not compile exact.{kernel}"
+    assert before["softras.kernels.exact_lines._DRAW_LINES"] >= 1, "the preparation did not compile exact_lines"
     assert {name: n for name, n in after.items() if n != before[name]} == {}
 
 
@@ -236,9 +237,12 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
         monkeypatch.setattr(Path, "read_bytes", lambda self: read_bytes(self) + (b"#" if self == edited else b""))
         assert stamp.sources_stamp(*modules) != before, module.__name__
         monkeypatch.setattr(Path, "read_bytes", read_bytes)
-    # The exact kernel is inlined nowhere: its edits leave the other keys alone
-    # (numba's cache checks its own file).
-    before = stamp.sources_stamp(ops, texture, rasterize)
-    edited = Path(k_exact.__file__)
-    monkeypatch.setattr(Path, "read_bytes", lambda self: read_bytes(self) + (b"#" if self == edited else b""))
-    assert stamp.sources_stamp(ops, texture, rasterize) == before
+    # The exact kernels are inlined nowhere: their edits leave the other keys
+    # alone (numba's cache checks their own files).
+    from softras.kernels import exact_lines as k_exact_lines
+    for module in (k_exact, k_exact_lines):
+        before = stamp.sources_stamp(ops, texture, rasterize)
+        edited = Path(module.__file__)
+        monkeypatch.setattr(Path, "read_bytes", lambda self: read_bytes(self) + (b"#" if self == edited else b""))
+        assert stamp.sources_stamp(ops, texture, rasterize) == before, module.__name__
+        monkeypatch.setattr(Path, "read_bytes", read_bytes)

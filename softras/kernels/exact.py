@@ -6,12 +6,11 @@ a triangle draw (unlit, flat, Gouraud or Phong; textured with the GL
 filters, isotropic; alpha test, every depth function and blend equation)
 is rasterized, shaded and applied by one parallel kernel (`_draw`); its
 vertex and clip stages are the stages' own functions, its set-up and
-corner values compiled mirrors (`setup_triangles`, `corner_values`), and
-every other draw (lines, normal and bump maps, anisotropic filtering, the
-filters of `softras.pipeline.texture_beyond`, texture bounds) is the
-stages' (`softras.pipeline.render.draw_lines`, `draw_triangles`) on the
-same float64 buffers; `resolve` makes the picture.  The bytes are the
-stages' (tests/test_exact_path.py):
+corner values compiled mirrors (`setup_triangles`, `corner_values`); line
+draws take `softras.kernels.exact_lines`, every other draw (normal and bump
+maps, anisotropic filtering, `softras.pipeline.texture_beyond`'s filters,
+texture bounds) the stages' `draw_triangles`, on the same float64 buffers;
+`resolve` makes the picture.  The bytes are the stages' (tests/test_exact_path.py):
 
 - set-up: `softras.pipeline.setup.setup_triangles` (`_setup`) and the
   einsum of `softras.pipeline.render.corner_values` (`_corners`);
@@ -24,8 +23,7 @@ stages' (tests/test_exact_path.py):
   `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
   for a texture `softras.pipeline.render.uv_at_fragments`
   (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_texel`),
-  `shade_unlit`, `alpha_test`, each with the stages' operations in their
-  order;
+  `shade_unlit`, `alpha_test`, each with the stages' operations in their order;
 - per sample: `softras.pipeline.ops.apply_fragments` without quantizing
   (its own `_depth_pass` and `_blend`);
 - the buffers: `softras.pipeline.render.new_pass_framebuffer`'s values,
@@ -45,6 +43,7 @@ import dataclasses
 import numba
 import numpy as np
 
+from softras.kernels import exact_lines
 from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _weights_at
 from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, flat_corner_colors, scene_lighting
 from softras.kernels.scratch import _Scratch
@@ -86,7 +85,8 @@ def render_samples(scene: Scene, job: stages.Job, reuse: bool = False) -> np.nda
     render with reuse overwrites (`softras.renderer` resolves it first)."""
     if job.precision != "exact":
         raise ValueError("softras.kernels.exact renders exact precision only")
-    return stages.render_samples(scene, job, draw_triangles, reused_framebuffer if reuse else None)
+    return stages.render_samples(scene, job, draw_triangles, reused_framebuffer if reuse else None,
+                                 lines=exact_lines.draw_lines)
 
 
 def reused_framebuffer(scene: Scene, inputs: stages.Pass) -> tuple[np.ndarray, np.ndarray]:

@@ -23,9 +23,9 @@ from pathlib import Path
 
 
 # Modules of this folder that no other kernel inlines: prepare.py holds no
-# compiled code, and exact.py's kernel is compiled for itself (an edit of it
-# need not compile the tile drivers again: five minutes on two cores).
-NOT_INLINED = ("prepare.py", "exact.py")
+# compiled code, and the exact kernels are compiled for themselves (an edit
+# of them need not compile the tile drivers again: five minutes on two cores).
+NOT_INLINED = ("prepare.py", "exact.py", "exact_lines.py")
 
 
 def sources_stamp(*stage_modules) -> str:
