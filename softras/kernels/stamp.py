@@ -1,19 +1,19 @@
 """A cache key for compiled code that inlines other modules' kernels.
 
-numba's on-disk cache checks the source file of the function it compiled
-and nothing else, but the tile drivers (`softras.kernels.draw`) and the
-line kernel (`softras.kernels.lines`) inline kernels of every module of
-this folder and some of the stages' (`softras.pipeline.ops`,
+numba's on-disk cache checks the source file of the function it compiled and
+nothing else, but the tile drivers (`softras.kernels.draw`) and the line
+kernel (`softras.kernels.lines`) inline kernels of every module of this
+folder and some of the stages' (`softras.pipeline.ops`,
 `softras.pipeline.texture`, `softras.pipeline.rasterize`,
-`softras.pipeline.libm`, and for the line kernel
-`softras.pipeline.lines`), and the exact kernel (`softras.kernels.exact`)
-those of `softras.kernels.interpolate`, `softras.kernels.light` and
+`softras.pipeline.libm`, and for the line kernel `softras.pipeline.lines`),
+and the exact kernel (`softras.kernels.exact`) those of
+`softras.kernels.interpolate`, `softras.kernels.light` and
 `softras.kernels.texture`, and it calls the stages'
 (`softras.pipeline.rasterize`, `softras.pipeline.ops`,
 `softras.pipeline.texture`, `softras.pipeline.libm`): an edit of one of
-those alone would load a stale kernel.  The stamp is a closure variable of the kernel, and numba
-keys a closure's cache on its variables, so any edit of a module it covers
-compiles the kernel again.
+those alone would load a stale kernel.  The stamp is a closure variable of
+the kernel, and numba keys a closure's cache on its variables, so any edit
+of a module it covers compiles the kernel again.
 """
 
 from __future__ import annotations
