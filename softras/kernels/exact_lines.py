@@ -33,8 +33,6 @@ every pixel sees the lines in the stages' fragment order.
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
@@ -44,7 +42,7 @@ from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, rasterize
 from softras.pipeline import render as stages
 from softras.pipeline.lines import (FIXED_ONE, _clip_line, _line_t, _pixel_mask, _plane_distances, _quad_planes,
-                                    _quad_rows, _row_span, _setup_line)
+                                    _quad_rows, _row_span, _sample_t, _setup_line)
 from softras.pipeline.rasterize import _sample_box
 
 # Rows of the picture a thread covers at once (thread r of n: bands r, r + n, ...).
@@ -222,13 +220,7 @@ def _apply_pixel(px, py, mask, n_samples, positions, rectangular, x_major, x0, y
             continue
         sx = (px + positions[s, 0]) + 0.0
         sy = (py + positions[s, 1]) + 0.0
-        if rectangular:
-            ts = ((sx - x0) * dx + (sy - y0) * dy) / (dx * dx + dy * dy)
-        elif x_major:
-            ts = (sx - x0) / dx
-        else:
-            ts = (sy - y0) / dy
-        z = z0 + (ts if math.isfinite(ts) else 0.0) * dz
+        z = z0 + _sample_t(sx, sy, x0, y0, dx, dy, rectangular, x_major) * dz
         if ops._depth_pass(depth_func, z, depth[py, px, s]):
             if write_z:
                 depth[py, px, s] = z

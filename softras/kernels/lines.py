@@ -30,7 +30,6 @@ equal depths resolve as there (docs/speed.md, "Lines").
 
 from __future__ import annotations
 
-import math
 from collections import namedtuple
 
 import numba
@@ -45,7 +44,7 @@ from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
 from softras.pipeline import rasterize
 from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _pixel_mask, _plane_distances,
-                                    _quad_planes, _quad_rows, _row_span, _setup_line)
+                                    _quad_planes, _quad_rows, _row_span, _sample_t, _setup_line)
 from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import vertex_colors
 
@@ -194,22 +193,16 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
                 mask = _pixel_mask(planes, px, py, offsets, unit)
                 if mask == 0:
                     continue
-                # depth_at_samples: t at each sample (the projection onto the
-                # line, or along the major axis in float32), not finite -> 0,
-                # z linear in t; the depth test and write.
+                # depth_at_samples: t at each sample (`_sample_t`: the
+                # projection onto the line, or along the major axis compared
+                # in float32), z linear in t; the depth test and write.
                 passed = 0
                 for s in range(n_samples):
                     if not (mask >> s) & 1:
                         continue
                     sx = (px + positions[s, 0]) + shift
                     sy = (py + positions[s, 1]) + shift
-                    if rectangular:
-                        ts = ((sx - x0) * dx + (sy - y0) * dy) / (dx * dx + dy * dy)
-                    elif x_major:
-                        ts = (sx - x0) / dx
-                    else:
-                        ts = (sy - y0) / dy
-                    k = _depth_k(z0 + (ts if math.isfinite(ts) else 0.0) * dz)
+                    k = _depth_k(z0 + _sample_t(sx, sy, x0, y0, dx, dy, rectangular, x_major) * dz)
                     stored = depth[py, px, s]
                     if _depth_pass_k(depth_func, k, stored):
                         if write_z:

@@ -855,6 +855,21 @@ def depth_at_samples(ends: np.ndarray, x: np.ndarray, y: np.ndarray,
     return ends[:, 0:1, 2] + t * d[:, 2:3]
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _sample_t(sx, sy, x0, y0, dx, dy, rectangular, x_major):
+    """`depth_at_samples`' t at one sample (sx, sy) of a line from (x0, y0)
+    along (dx, dy), for the compiled line kernels: the projection onto the
+    line for a rectangular line, else along the major axis (x_major: |dx| >=
+    |dy|, compared in the precision's type); 0 where it is not finite."""
+    if rectangular:
+        t = ((sx - x0) * dx + (sy - y0) * dy) / (dx * dx + dy * dy)
+    elif x_major:
+        t = (sx - x0) / dx
+    else:
+        t = (sy - y0) / dy
+    return t if math.isfinite(t) else 0.0
+
+
 def interpolate_lines(t: np.ndarray, inv_w: np.ndarray, values: np.ndarray,
                       perspective: bool = True) -> np.ndarray:
     """Attributes of line fragments.
