@@ -224,12 +224,13 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     line_key = [cell.cell_contents for cell in k_lines._DRAW_LINES.py_func.__closure__]
     exact_key = [cell.cell_contents for cell in k_exact._DRAW.py_func.__closure__]
     assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize, libm)
-    assert line_key == [stamp.sources_stamp(lines, ops, rasterize)]
+    assert line_key == [stamp.sources_stamp(lines, ops, rasterize, clip_stage)]
     assert exact_key == [stamp.sources_stamp(rasterize, ops, texture, libm)]
     assert [cell.cell_contents for cell in k_exact._TEXELS.py_func.__closure__] == exact_key
     read_bytes = Path.read_bytes
     for module, modules in ((ops, (ops, texture, rasterize)), (texture, (ops, texture, rasterize)),
                             (rasterize, (ops, texture, rasterize)), (lines, (lines, ops, rasterize)),
+                            (clip_stage, (lines, ops, rasterize, clip_stage)),
                             (libm, (ops, texture, rasterize, libm)),
                             (k_lines, ()), (k_light, ())):
         before = stamp.sources_stamp(*modules)

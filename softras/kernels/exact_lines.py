@@ -38,6 +38,7 @@ import numpy as np
 
 from softras.kernels.scratch import _Scratch
 from softras.kernels.stamp import sources_stamp
+from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, rasterize
 from softras.pipeline import render as stages
@@ -243,4 +244,4 @@ def _apply_pixel(px, py, mask, n_samples, positions, rectangular, x_major, x0, y
                 color[py, px, s, ch] = ops._blend(blend, src[ch], color[py, px, s, ch], a)
 
 
-_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize))
+_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize, clip_stage))

@@ -40,6 +40,7 @@ from softras.kernels.ops import _depth_k, _depth_pass_k, _write_word
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
+from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
 from softras.pipeline import rasterize
@@ -126,7 +127,7 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
     (`_binned_region`); drawn False for a line dropped on the way.
 
     c (N, 4) float32 clip positions, dist (N, 6) their plane distances
-    (`softras.pipeline.lines._plane_distances`), finite (N,) whether their
+    (`softras.pipeline.clip._plane_distances`), finite (N,) whether their
     float64 values are finite, indices (M, 2), values (N, 4) straight
     vertex colours; rectangular: MSAA lines; the framebuffer's size; the
     `LineTable`'s arrays one by one (numba's parallel loop dropped this
@@ -224,4 +225,4 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
                 _write_word(color32, py, px, passed, n_samples, blend, word)
 
 
-_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize))
+_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize, clip_stage))

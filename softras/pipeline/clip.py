@@ -91,23 +91,28 @@ def plane_distances(clip: np.ndarray, planes: np.ndarray, precision: str) -> np.
     module's ``dot4`` computes it (for the frustum planes this is ``w - x``
     and so on, one rounding).
     """
-    d = _distances(np.ascontiguousarray(clip, np.float64), np.ascontiguousarray(planes, np.float64))
+    d = _plane_distances(np.ascontiguousarray(clip, np.float64), np.ascontiguousarray(planes, np.float64))
     if precision == "gl":
         d = d.astype(np.float32).astype(np.float64)
     return d
 
 
 @numba.njit(cache=True)
-def _distances(clip, planes):
-    """(N, 4) points . (P, 4) planes -> (N, P) float64, summed as
-    `clip_polygon` sums (``((x a + y b) + z c) + w d``), not by BLAS (see
-    `softras.pipeline.vertex._transform`)."""
-    out = np.empty((clip.shape[0], planes.shape[0]))
-    for v in range(clip.shape[0]):
-        x, y, z, w = clip[v, 0], clip[v, 1], clip[v, 2], clip[v, 3]
+def _plane_distances(c, planes):
+    """The draw module's dot4 of every vertex c (N, 4) with every plane
+    (P, 4), left to right, each step in c's type (float32 for the gl line
+    clipper, rounded at each step; float64 for `plane_distances`, the sum
+    `clip_polygon` takes): (N, P).  A loop, not BLAS (see
+    `softras.pipeline.vertex._transform`).  The line stage and the line
+    kernels use it too."""
+    dist = np.empty((c.shape[0], planes.shape[0]), c.dtype)
+    for v in range(c.shape[0]):
         for p in range(planes.shape[0]):
-            out[v, p] = ((x * planes[p, 0] + y * planes[p, 1]) + z * planes[p, 2]) + w * planes[p, 3]
-    return out
+            d = c[v, 0] * planes[p, 0]
+            for k in range(1, 4):
+                d = d + c[v, k] * planes[p, k]
+            dist[v, p] = d
+    return dist
 
 
 def clip_triangles(clip: np.ndarray, indices: np.ndarray, *, precision: str = "gl",

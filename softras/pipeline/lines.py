@@ -79,7 +79,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from softras.pipeline.clip import clip_planes
+from softras.pipeline.clip import _plane_distances, clip_planes  # noqa: F401  (also the line kernels')
 from softras.pipeline.rasterize import Fragments, _sample_box
 from softras.pipeline.setup import viewport_transform
 
@@ -200,21 +200,6 @@ def clip_inputs(clip: np.ndarray, precision: str, policy: str, width: int,
         c = np.ascontiguousarray(clip.astype(ftype))
     planes = np.ascontiguousarray(clip_planes(policy, width, height).astype(ftype))
     return c, np.isfinite(clip).all(axis=1), planes
-
-
-@numba.njit(cache=True)
-def _plane_distances(c, planes):
-    """The draw module's dot4 of every vertex c (N, 4) with every plane
-    (P, 4), left to right, each step in c's type (float32 in gl precision,
-    rounded at each step): (N, P)."""
-    dist = np.empty((c.shape[0], planes.shape[0]), c.dtype)
-    for v in range(c.shape[0]):
-        for p in range(planes.shape[0]):
-            d = c[v, 0] * planes[p, 0]
-            for k in range(1, 4):
-                d = d + c[v, k] * planes[p, k]
-            dist[v, p] = d
-    return dist
 
 
 @numba.njit(cache=True)
