@@ -553,7 +553,9 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
         _lane_alpha_test(n, t, colors, lf, li, _LI_COV, False, state.flat, state.cutoff)
     if use_depth:
         _lane_depths(n, t, tri_f, positions, li, n_samples)
-    kept = 0
+    # (An int64 from the start: from a literal 0, numba typed `_phong_words`'
+    # count as Literal[int](0) on its first pass and compiled it twice, 3 s.)
+    kept = np.int64(0)
     for l in range(n):
         px, py = li[_LI_PX, l], li[_LI_PY, l]
         p = li[_LI_COV, l]

@@ -107,17 +107,22 @@ def _make_draw_lines(sources: str):
         ends)."""
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
         dist = _plane_distances(c, planes)
+        # (The two helpers are called, not inlined, as in `softras.kernels.exact_lines`:
+        # inlined into the parallel loops the kernel took 31 s to compile cold,
+        # called 17 s, drawing as fast; and with an int64 thread number: numba types
+        # a prange index int64, then uint64 in the loop's body, and would compile
+        # each helper twice.)
         for r in numba.prange(n_threads):
-            _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, depth.shape[1],
+            _set_up_lines(np.int64(r), n_threads, c, dist, finite, indices, values, rectangular, depth.shape[1],
                           depth.shape[0], drawn, qx, qy, region, window, inv_w, ends)
         for r in numba.prange(n_threads):
-            _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift, color32, depth,
+            _cover_lines(np.int64(r), n_threads, material, offsets, positions, rectangular, shift, color32, depth,
                          depth_func, write_z, blend, LineTable(drawn, qx, qy, region, window, inv_w, ends))
 
     return draw_lines_kernel
 
 
-@numba.njit(error_model="numpy", inline="always")
+@numba.njit(error_model="numpy")
 def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, width, height, drawn, qx, qy,
                   region, window, inv_w, ends):
     """`softras.pipeline.lines.rasterized_lines` up to the coverage, for the
@@ -153,7 +158,7 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
                        and _binned_region(qx[line], qy[line], 0, rectangular, width, height, region[line]))
 
 
-@numba.njit(error_model="numpy", inline="always")
+@numba.njit(error_model="numpy")
 def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift, color32, depth, depth_func,
                  write_z, blend, table):
     """The set-up lines of the `LineTable` in order, in the bands of rows
