@@ -42,7 +42,13 @@ def pytest_sessionstart(session):
     if worker and count:
         from softras.kernels import draw, prepare
 
-        variants = list(draw._DRAW_TILES) + [prepare.EXACT]  # every driver, and exact precision's kernels
+        # Every variant: the tile drivers, exact precision's kernels and the
+        # line kernel, in an order that gives two workers about the same
+        # compile time (1u, 4u, 0u, exact and lines, 1t, 4t, 0t: ~3 min each).
+        variants = [(1, False), prepare.LINES, (4, False), (1, True), (0, False), (4, True), prepare.EXACT,
+                    (0, True)]
+        assert sorted(variants, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
+                                                            key=prepare.name)
         for variant in variants[int(worker.removeprefix("gw")) % int(count)::int(count)]:
             prepare.prepare(variant)
     if not session.config.getoption("--update-golden", default=False):

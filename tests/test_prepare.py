@@ -40,7 +40,7 @@ def started(monkeypatch):
     calls = []
 
     def record(variants):
-        calls.append(sorted(variants))
+        calls.append(sorted(variants, key=prepare.name))
         return True
 
     monkeypatch.setattr(prepare, "start_background", record)
@@ -51,17 +51,15 @@ def started(monkeypatch):
 def test_the_preparation_scene_reaches_every_kernel(textured):
     """Every draw crosses the near plane (the clipper's generated triangles)
     with at least PARALLEL_SETUP triangles (the parallel set-up); every
-    shading model; textured: a filter of each kind, lanes and scalar; a
-    line draw crossing the near plane."""
-    scene = softras.load_scene(prepare.preparation_scene(4, textured))
+    shading model; textured: a filter of each kind, lanes and scalar; and
+    with lines, `line_preparation_scene`'s draw."""
+    scene = softras.load_scene(prepare.preparation_scene(4, textured, lines=False))
     assert fastpath.unsupported(scene, precision="gl", clipping=None) is None
     assert {d.material.shading for d in scene.draws} == {"unlit", "flat", "gouraud", "phong"}
+    with_lines = softras.load_scene(prepare.preparation_scene(4, textured))
+    assert [d.mesh.primitive for d in with_lines.draws] == ["triangles"] * 4 + ["lines"]
     for draw in scene.draws:
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
-        if draw.mesh.primitive == "lines":
-            clipped = lines.clip_lines(vertex.to_clip(draw.mesh.positions, mvp, "gl"), draw.mesh.indices)
-            assert len(clipped) == 2 and clipped.generated.any(), "the lines cross no clip plane"
-            continue
         source, slot, _, _ = clip_stage.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"),
                                                           draw.mesh.indices)
         assert len(source) >= k_setup.PARALLEL_SETUP, draw.path
@@ -71,15 +69,44 @@ def test_the_preparation_scene_reaches_every_kernel(textured):
     assert kinds == ({0, 1} if textured else set())
 
 
+def test_the_line_preparation_scene_crosses_the_near_plane():
+    """The lines of `line_preparation_scene` reach the line clipper's
+    generated end points."""
+    scene = softras.load_scene(prepare.line_preparation_scene())
+    (draw,) = scene.draws
+    mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
+    clipped = lines.clip_lines(vertex.to_clip(draw.mesh.positions, mvp, "gl"), draw.mesh.indices)
+    assert len(clipped) == 2 and clipped.generated.any(), "the lines cross no clip plane"
+
+
 def test_background_mode_draws_with_the_stages_meanwhile(fresh_cache, started, monkeypatch):
     """Nothing ready: the stages draw the scene (the same bytes), one
-    background preparation of the scene's variants is started, no mark is
-    written by the render."""
+    background preparation of the scene's variants (its triangles' tile
+    driver, the line kernel) is started, no mark is written by the render."""
     monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)
     image = render_scene(SCENE)
-    assert started == [[(1, False)]]
-    assert not prepare.ready((1, False))
+    assert started == [[(1, False), prepare.LINES]]
+    assert not prepare.ready((1, False)) and not prepare.ready(prepare.LINES)
     assert np.array_equal(image, render_scene(SCENE, fast_path=False))
+
+
+def test_a_wireframe_waits_for_no_compile(fresh_cache, started, monkeypatch):
+    """Lines alone need the line kernel (`prepare.LINES`): the stages draw
+    them while it compiles in the background, then the kernel draws them
+    (the same bytes)."""
+    kernel_draws = []
+    draw_lines = fastpath.draw_lines
+    monkeypatch.setattr(fastpath, "draw_lines", lambda *args: kernel_draws.append(1) or draw_lines(*args))
+    monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)
+    wireframe = softras.load_scene(prepare.line_preparation_scene())
+    assert prepare.variants(wireframe, 4) == {prepare.LINES}
+    image = render_scene(wireframe, samples=4)
+    assert started == [[prepare.LINES]] and kernel_draws == []
+    assert prepare.main([prepare.LINES]) == 0
+    assert prepare.ready(prepare.LINES) and not prepare.ready((1, False))
+    kernel_draws.clear()
+    assert np.array_equal(render_scene(wireframe, samples=4), image) and kernel_draws == [1]
+    assert image[..., :3].any()
 
 
 def test_background_mode_waits_when_the_stages_refuse_the_scene(fresh_cache, started, monkeypatch):
@@ -127,9 +154,10 @@ def test_exact_precision_draws_with_the_stages_while_its_kernels_compile(fresh_c
 
 
 def test_variant_names_round_trip():
-    for variant in [(1, False), (4, True), (0, True), prepare.EXACT]:
+    every = [(1, False), (4, True), (0, True), prepare.EXACT, prepare.LINES]
+    for variant in every:
         assert prepare.parse(prepare.name(variant)) == variant
-    assert [prepare.name(v) for v in [(1, False), (4, True), (0, True), prepare.EXACT]] == ["1u", "4t", "0t", "exact"]
+    assert [prepare.name(v) for v in every] == ["1u", "4t", "0t", "exact", "lines"]
 
 
 def test_the_exact_preparation_reaches_every_exact_kernel(tmp_path):

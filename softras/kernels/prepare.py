@@ -3,8 +3,9 @@
 numba compiles the kernels of `softras.kernels.draw` the first time a
 process needs them and keeps them in its on-disk cache; on a fresh clone
 that takes about 45 s per tile-driver variant (a sample count, textured
-or not: docs/speed.md, "Compile time"), and about 25 s for the exact
-kernels (`softras.kernels.exact`, the variant `EXACT`).  The readable
+or not: docs/speed.md, "Compile time"), about 25 s for the exact
+kernels (`softras.kernels.exact`, the variant `EXACT`) and about 20 s
+for the gl line kernel (`softras.kernels.lines`, the variant `LINES`).  The readable
 stages give the same bytes (tests/test_fastpath.py,
 tests/test_exact_path.py) and compile in seconds, so a render need not
 wait: `ensure` either
@@ -51,9 +52,12 @@ MODE_WAIT, MODE_BACKGROUND = "wait", "background"
 MODES = (MODE_WAIT, MODE_BACKGROUND)
 ENV = "SOFTRAS_COMPILE"
 
-# A variant is a tile driver's (driver samples, textured) or EXACT: the
-# exact-precision kernels, one compiled set for every scene.
+# A variant is a tile driver's (driver samples, textured), EXACT: the
+# exact-precision kernels, one compiled set for every scene, or LINES: the
+# gl-precision line kernel, one for every line draw.
 EXACT = "exact"
+LINES = "lines"
+_NAMED = (EXACT, LINES)
 
 
 def mode() -> str:
@@ -65,33 +69,38 @@ def mode() -> str:
     return value
 
 
-def variants(scene, samples: int) -> set[tuple[int, bool]]:
-    """The tile-driver variants (driver samples, textured) that a scene which
-    `softras.kernels.draw.unsupported` accepts needs, at ``samples`` drawn
-    in the stages' passes (`softras.kernels.draw.driver_samples` of each
-    pass: 1, 4, or 0 for any other count; line
-    draws need none: `softras.kernels.lines` compiles in seconds)."""
+def variants(scene, samples: int) -> set:
+    """The variants that a scene which `softras.kernels.draw.unsupported`
+    accepts needs at ``samples`` drawn in the stages' passes: the tile
+    drivers (driver samples, textured) of its triangle draws
+    (`softras.kernels.draw.driver_samples` of each pass: 1, 4, or 0 for any
+    other count), and LINES if it draws lines (a wireframe alone waited 20-40 s
+    for the line kernel, silently, when it was compiled in the render)."""
     from softras.kernels.draw import driver_samples
     from softras.pipeline.sampling import sample_passes
 
-    return {(driver_samples(stop - start), draw.material.texture is not None)
-            for start, stop in sample_passes(samples) for draw in scene.draws if draw.mesh.primitive == "triangles"}
+    needed = {(driver_samples(stop - start), draw.material.texture is not None)
+              for start, stop in sample_passes(samples) for draw in scene.draws if draw.mesh.primitive == "triangles"}
+    if any(draw.mesh.primitive == "lines" for draw in scene.draws):
+        needed.add(LINES)
+    return needed
 
 
 @functools.cache
 def _stamp() -> str:
     """What the compiled code depends on: the kernels' sources (the drivers'
     own stamp, `softras.kernels.draw._SOURCES`, and the exact kernels',
-    kernels/exact.py), the stages' (numba loops of their own, and functions
-    the kernels inline), numba's version, the host CPU (numba compiles for
-    it)."""
+    kernels/exact.py and kernels/exact_lines.py), the stages' (numba loops
+    of their own, and functions the kernels inline), numba's version, the
+    host CPU (numba compiles for it)."""
     import llvmlite.binding as llvm
 
     from softras.kernels import draw
 
     digest = hashlib.sha256(f"{numba.__version__}\0{llvm.get_host_cpu_name()}\0{draw._SOURCES}\0".encode())
     package = Path(__file__).resolve().parents[1]
-    for path in sorted(package.glob("pipeline/*.py")) + [package / "kernels" / "exact.py"]:
+    exact_kernels = [package / "kernels" / name for name in ("exact.py", "exact_lines.py")]
+    for path in sorted(package.glob("pipeline/*.py")) + exact_kernels:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()[:16]
 
@@ -113,16 +122,17 @@ def _own_cache_dir() -> Path:
 
 def name(variant) -> str:
     """A variant's name in marks and on the command line: "1u" (1 sample,
-    untextured), "4t" (4, textured), "0t" (any other count), or "exact"."""
-    if variant == EXACT:
-        return EXACT
+    untextured), "4t" (4, textured), "0t" (any other count), "exact" or
+    "lines"."""
+    if variant in _NAMED:
+        return variant
     samples, textured = variant
     return f"{samples}{'t' if textured else 'u'}"
 
 
 def parse(text: str):
     """The variant named ``text`` (`name`'s inverse)."""
-    return EXACT if text == EXACT else (int(text[:-1]), text[-1] == "t")
+    return text if text in _NAMED else (int(text[:-1]), text[-1] == "t")
 
 
 def _mark(variant) -> Path:
@@ -133,7 +143,7 @@ _marks_seen: set[Path] = set()
 
 
 def ready(variant) -> bool:
-    """Whether ``variant`` ((samples, textured) or EXACT) has been prepared on this
+    """Whether ``variant`` ((samples, textured), EXACT or LINES) has been prepared on this
     machine (a mark found once is not looked up again in this process)."""
     mark = _mark(variant)
     if mark not in _marks_seen and mark.exists():
@@ -159,15 +169,14 @@ def _locked(variant, blocking: bool = True):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def preparation_scene(samples: int, textured: bool) -> dict:
+def preparation_scene(samples: int, textured: bool, lines: bool = True) -> dict:
     """A small scene that reaches every kernel of one variant: lit grids of
     18432 triangles, over PARALLEL_SETUP of them inside the frustum (the
     parallel set-up, `softras.kernels.setup.PARALLEL_SETUP`), crossing the
     near plane (the clipper), drawn unlit, flat, Gouraud and
     Phong, textured with a mipmapped filter (the lane filter) and a nearest
     one (the scalar filter) when ``textured``, blended and depth-tested; and
-    lines crossing the near plane (`softras.kernels.lines` and the line
-    clipper's compiled loop)."""
+    with ``lines`` the draw of `line_preparation_scene`."""
     from softras.kernels.setup import PARALLEL_SETUP
 
     cols = 2 * int(np.ceil(np.sqrt(PARALLEL_SETUP / 2)))     # (about half of it is inside the frustum)
@@ -179,8 +188,8 @@ def preparation_scene(samples: int, textured: bool) -> dict:
         nodes.append({"name": shading, "rotate": [-80, 1, 0, 0], "translate": [0.3 * k - 0.45, -0.5, 0],
                       "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [4, 8]},
                       "material": material, "blend": "over" if k == 3 else "none"})
-    nodes.append({"name": "lines", "mesh": {"primitive": "lines", "indices": [[0, 1], [2, 3]],
-                                            "positions": [[-1, -0.5, 0.9], [1, 0.4, -3], [1, -0.3, 0.95], [-1, 0.2, -2]]}})
+    if lines:
+        nodes += line_preparation_scene()["nodes"]
     textures = {name: {"procedural": "checker", "size": [16, 16], "min_filter": name + "_mipmap_linear"
                        if name == "linear" else name}
                 for name in (("linear", "nearest") if textured else ())}
@@ -191,11 +200,24 @@ def preparation_scene(samples: int, textured: bool) -> dict:
             "nodes": nodes}
 
 
+def line_preparation_scene() -> dict:
+    """A scene of lines crossing the near plane: the line kernels
+    (`softras.kernels.lines`, `softras.kernels.exact_lines`) and the line
+    clipper's compiled loop."""
+    return {"softras_scene": 1, "width": 64, "height": 48,
+            "camera": {"projection": "perspective", "fov_y": 60, "near": 0.5, "far": 20,
+                       "eye": [0, 0, 1], "target": [0, 0, 0]},
+            "nodes": [{"name": "lines", "mesh": {"primitive": "lines", "indices": [[0, 1], [2, 3]],
+                                                 "positions": [[-1, -0.5, 0.9], [1, 0.4, -3], [1, -0.3, 0.95],
+                                                               [-1, 0.2, -2]]}}]}
+
+
 def prepare(variant) -> None:
     """Compile ``variant`` now unless it is ready: under its lock, render
     `preparation_scene` on the compiled path (a tile driver (driver
-    samples, textured): in gl precision, at 2 samples for the driver of any
-    count; EXACT: textured, in exact precision), then mark it ready."""
+    samples, textured): in gl precision, without lines, at 2 samples for
+    the driver of any count; EXACT: textured, in exact precision) or LINES
+    `line_preparation_scene` (gl precision), then mark it ready."""
     if ready(variant):
         return
     from softras.scene import load_scene
@@ -212,6 +234,13 @@ def prepare(variant) -> None:
                                 framebuffer=None, clipping=None, texture_fixed_point=True, texture_filter=None,
                                 texture_bounds=None, tie_rule="left_bottom")
             exact.resolve(job, exact.render_samples(scene, job, reuse=True))
+        elif variant == LINES:
+            from softras.kernels import draw
+            from softras.pipeline import sampling
+
+            # (One sample: MSAA's rectangular lines are the same compiled
+            # function, a flag at run time.)
+            draw.render_samples(load_scene(line_preparation_scene()), sampling.sample_positions(1))
         else:
             from softras.kernels import draw
             from softras.pipeline import sampling
@@ -219,7 +248,7 @@ def prepare(variant) -> None:
             samples, textured = variant
             positions = (sampling.sample_positions(samples) if samples else
                          sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)
-            scene = load_scene(preparation_scene(samples or 1, textured))    # (a scene has 1 or 4)
+            scene = load_scene(preparation_scene(samples or 1, textured, lines=False))    # (a scene has 1 or 4)
             assert draw.unsupported(scene, precision="gl", clipping=None) is None
             draw.render_samples(scene, positions)
         _mark(variant).touch()
@@ -271,13 +300,13 @@ def ensure(variants, stages_can_draw: bool = True) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m softras.kernels.prepare 1u 0t exact ...``: prepare the
-    variants (`name`: samples, then u untextured or t textured; or exact)
+    """``python -m softras.kernels.prepare 1u 0t exact lines ...``: prepare the
+    variants (`name`: samples, then u untextured or t textured; exact; lines)
     at low priority."""
     parser = argparse.ArgumentParser(prog="python -m softras.kernels.prepare", description=main.__doc__)
     parser.add_argument("variants", nargs="+",
-                        help="e.g. 1u (1 sample, untextured), 4t (4, textured), 0t (any other count) "
-                             "or exact (the exact-precision kernels)")
+                        help="e.g. 1u (1 sample, untextured), 4t (4, textured), 0t (any other count), "
+                             "exact (the exact-precision kernels) or lines (the gl line kernel)")
     args = parser.parse_args(argv)
     for text in args.variants:
         prepare(parse(text))
