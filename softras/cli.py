@@ -1051,6 +1051,27 @@ def announce_compilation(stream=None, *, only_on_terminal: bool = True) -> None:
     _compile_notice_installed = True
 
 
+def _without_numba_blas() -> None:
+    """Load numba's array implementations now, telling them there is no BLAS.
+
+    A process's first compiled call (a cache load included) imports
+    numba.np.arraymath, whose probe for a BLAS (for ``np.dot`` and
+    ``np.linalg`` in compiled code) imports scipy.linalg: 0.3 s of a 1.7 s
+    first render in a new process.  softras's kernels call no BLAS (they
+    must not: its threads fight numba's for the cores, docs/speed.md), and
+    this process runs no one else's compiled code, so the probe may fail:
+    ``scipy.linalg`` is hidden while numba looks.  A process that imported
+    either already is left alone, and so is one that uses softras as a
+    library (this is the command line's)."""
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return
+    sys.modules["scipy.linalg"] = None          # (an import of it raises ImportError)
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        del sys.modules["scipy.linalg"]
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``softras`` command line.
 
@@ -1079,6 +1100,7 @@ def main(argv: list[str] | None = None) -> int:
     from softras.scene.imageio import ImageError
 
     announce_compilation()
+    _without_numba_blas()
     try:
         return args.func(args)
     except (CLIError, ImageError) as error:

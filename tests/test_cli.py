@@ -70,6 +70,31 @@ def write_scene(tmp_path, scene=TRIANGLE_SCENE, name="scene.json"):
 # Help and usage
 
 
+def test_the_command_line_renders_without_importing_scipy_linalg(tmp_path):
+    """A ``softras render`` process loads numba's array code with BLAS
+    hidden (`softras.cli._without_numba_blas`: scipy.linalg took 0.3 s of a
+    first render) and draws the same bytes as a process that imported
+    scipy.linalg first; scipy.linalg still imports after it."""
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(TRIANGLE_SCENE))
+    program = f"""
+import sys
+from softras.cli import main
+assert main(["render", {str(scene)!r}, "-o", sys.argv[1]]) == 0
+print("scipy.linalg" in sys.modules)
+import scipy.linalg
+"""
+    runs = []
+    for first in ("", "import scipy.linalg; "):
+        out = tmp_path / f"out{len(runs)}.png"
+        done = subprocess.run([sys.executable, "-c", first + program, str(out)], capture_output=True, text=True,
+                              timeout=300)
+        assert done.returncode == 0, done.stderr[-2000:]
+        runs.append((done.stdout.split()[-1], read_png(out)))
+    assert [loaded for loaded, _ in runs] == ["False", "True"]
+    assert np.array_equal(runs[0][1], runs[1][1])
+
+
 def test_python_m_softras_help():
     done = subprocess.run([sys.executable, "-m", "softras", "--help"], capture_output=True, text=True,
                           timeout=120)
