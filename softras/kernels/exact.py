@@ -581,12 +581,13 @@ def _make_draw(sources: str):
                         for s in range(n_samples):
                             if not (mask >> s) & 1:
                                 continue
-                            # `softras.pipeline.interpolate.depth_at_samples`, from corner 0
-                            z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
-                            if not ops._depth_pass(depth_func, z, depth[py, px, s]):
-                                continue
-                            if write_z:
-                                depth[py, px, s] = z
+                            if depth_func != 0:     # (without a depth test: no z, no read of the depth buffer)
+                                # `softras.pipeline.interpolate.depth_at_samples`, from corner 0
+                                z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
+                                if not ops._depth_pass(depth_func, z, depth[py, px, s]):
+                                    continue
+                                if write_z:
+                                    depth[py, px, s] = z
                             for ch in range(4):
                                 color[py, px, s, ch] = ops._blend(blend, src[ch], color[py, px, s, ch], src[3])
 
