@@ -581,8 +581,7 @@ def _make_draw(sources: str):
                         for s in range(n_samples):
                             if not (mask >> s) & 1:
                                 continue
-                            if depth_func != 0:     # (without a depth test: no z, no read of the depth buffer)
-                                # `softras.pipeline.interpolate.depth_at_samples`, from corner 0
+                            if depth_func != 0:     # (`depth_at_samples` from corner 0; no test, no z, no read)
                                 z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
                                 if not ops._depth_pass(depth_func, z, depth[py, px, s]):
                                     continue
