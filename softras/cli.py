@@ -1099,8 +1099,9 @@ def main(argv: list[str] | None = None) -> int:
 
     from softras.scene.imageio import ImageError
 
-    announce_compilation()
-    _without_numba_blas()
+    if args.func not in (cmd_compare, cmd_info):      # (the commands that run compiled code)
+        announce_compilation()
+        _without_numba_blas()
     try:
         return args.func(args)
     except (CLIError, ImageError) as error:

@@ -95,6 +95,22 @@ import scipy.linalg
     assert np.array_equal(runs[0][1], runs[1][1])
 
 
+def test_compare_leaves_numba_s_array_code_unloaded(tmp_path):
+    """`softras compare` runs no compiled code: it neither installs the
+    compile notice nor loads numba's array implementations (0.1 s)."""
+    image = tmp_path / "a.png"
+    write_png_atomic(image, np.zeros((8, 8, 4), np.uint8))
+    program = f"""
+import sys
+from softras.cli import main
+assert main(["compare", {str(image)!r}, {str(image)!r}]) == 0
+print("numba.np.arraymath" in sys.modules)
+"""
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split()[-1] == "False"
+
+
 def test_python_m_softras_help():
     done = subprocess.run([sys.executable, "-m", "softras", "--help"], capture_output=True, text=True,
                           timeout=120)

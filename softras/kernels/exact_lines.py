@@ -9,7 +9,7 @@ samples are the stages', value for value: tests/test_exact_lines.py):
    policy (guard band by default; `clip_inputs`, the same
    `_plane_distances` and `_clip_line`);
 2. viewport: `softras.pipeline.setup.viewport_transform` in exact
-   precision, ``(c / w) W/2 + W/2`` (`_viewport`);
+   precision, ``(c / w) W/2 + W/2`` (in `_set_up_lines`, as `softras.kernels.exact._setup`);
 3. set-up: `softras.pipeline.lines.line_quads` (the same `_setup_line`,
    gl False: unsnapped, later Mesa's end-pixel tests), no binning;
 4. coverage: `softras.pipeline.lines.rasterize_lines` (`_raster_quad`'s
@@ -42,8 +42,9 @@ from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, rasterize
 from softras.pipeline import render as stages
-from softras.pipeline.lines import (FIXED_ONE, _clip_line, _line_t, _pixel_mask, _plane_distances, _quad_planes,
-                                    _quad_rows, _row_span, _sample_t, _setup_line)
+from softras.pipeline.clip import _plane_distances
+from softras.pipeline.lines import (FIXED_ONE, _clip_line, _line_t, _pixel_mask, _quad_planes, _quad_rows,
+                                    _row_span, _sample_t, _setup_line)
 from softras.pipeline.rasterize import _sample_box
 
 # Rows of the picture a thread covers at once (thread r of n: bands r, r + n, ...).

@@ -44,8 +44,9 @@ from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
 from softras.pipeline import rasterize
-from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _pixel_mask, _plane_distances,
-                                    _quad_planes, _quad_rows, _row_span, _sample_t, _setup_line)
+from softras.pipeline.clip import _plane_distances
+from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _pixel_mask, _quad_planes,
+                                    _quad_rows, _row_span, _sample_t, _setup_line)
 from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import vertex_colors
 

@@ -220,6 +220,8 @@ def prepare(variant) -> None:
     `line_preparation_scene` (gl precision), then mark it ready."""
     if ready(variant):
         return
+    from softras.kernels import draw
+    from softras.pipeline import sampling
     from softras.scene import load_scene
 
     with _locked(variant):
@@ -235,16 +237,10 @@ def prepare(variant) -> None:
                                 texture_bounds=None, tie_rule="left_bottom")
             exact.resolve(job, exact.render_samples(scene, job, reuse=True))
         elif variant == LINES:
-            from softras.kernels import draw
-            from softras.pipeline import sampling
-
             # (One sample: MSAA's rectangular lines are the same compiled
             # function, a flag at run time.)
             draw.render_samples(load_scene(line_preparation_scene()), sampling.sample_positions(1))
         else:
-            from softras.kernels import draw
-            from softras.pipeline import sampling
-
             samples, textured = variant
             positions = (sampling.sample_positions(samples) if samples else
                          sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)

@@ -79,7 +79,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from softras.pipeline.clip import _plane_distances, clip_planes  # noqa: F401  (also the line kernels')
+from softras.pipeline.clip import _plane_distances, clip_planes
 from softras.pipeline.rasterize import Fragments, _sample_box
 from softras.pipeline.setup import viewport_transform
 
