@@ -241,7 +241,8 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     inline, and pipeline/libm.py (the Phong kernels' pow), the line
     kernel's with pipeline/lines.py, ops.py and rasterize.py, and the exact
     kernel's with pipeline/rasterize.py, pipeline/ops.py,
-    pipeline/texture.py and pipeline/libm.py
+    pipeline/texture.py and pipeline/libm.py, and Gouraud's and flat
+    shading's lighting loops' with pipeline/libm.py
     (`softras.kernels.stamp.sources_stamp`)."""
     from softras.kernels import exact as k_exact
     from softras.kernels import light as k_light
@@ -255,6 +256,8 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize, clip_stage)]
     assert exact_key == [stamp.sources_stamp(rasterize, ops, texture, libm)]
     assert [cell.cell_contents for cell in k_exact._TEXELS.py_func.__closure__] == exact_key
+    for loop in (k_light._vertex_lighting, k_light._face_lighting):
+        assert [cell.cell_contents for cell in loop.py_func.__closure__] == [stamp.sources_stamp(libm)]
     read_bytes = Path.read_bytes
     for module, modules in ((ops, (ops, texture, rasterize)), (texture, (ops, texture, rasterize)),
                             (rasterize, (ops, texture, rasterize)), (lines, (lines, ops, rasterize)),

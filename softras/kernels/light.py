@@ -27,7 +27,8 @@ import numpy as np
 from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix
 from softras.kernels.lanes import (_LF_LIT, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW, _LF_W,
                                    _LI_WORD)
-from softras.pipeline import fragment, render, vertex
+from softras.kernels.stamp import sources_stamp
+from softras.pipeline import fragment, libm, render, vertex
 from softras.pipeline.libm import _power
 
 # The eye (world space) and the material's Blinn-Phong terms, as scalars.
@@ -84,7 +85,7 @@ def _dot(ax, ay, az, bx, by, bz):
     return (ax * bx + ay * by) + az * bz
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(error_model="numpy", inline="always")
 def _phong_colors(n, t, colors, lit, lf, lights, lighting):
     """The straight Phong-lit colour of the n lanes of triangle t into the
     _LF_LIT rows (r, g, b lit, a interpolated).
@@ -182,7 +183,7 @@ def _phong_words(n, t, colors, lit, lf, li, lights, lighting, textured):
 # on a 36k-vertex mesh, 60 % of the render).
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(error_model="numpy", inline="always")
 def _lit_point(r, g, b, px, py, pz, nx, ny, nz, lights, lighting):
     """`softras.pipeline.fragment.blinn_phong` at one world point p with unit
     normal n and straight colour (r, g, b): the lit (r, g, b)."""
@@ -199,38 +200,50 @@ def _lit_point(r, g, b, px, py, pz, nx, ny, nz, lights, lighting):
     return out_r, out_g, out_b
 
 
-@numba.njit(cache=True, error_model="numpy", parallel=True)
-def _vertex_lighting(base, world, normals, lights, lighting, out):
-    """Gouraud's lit vertex colours into out (V, 4): base (V, 4) straight,
-    world positions (V, 3), world normals (V, 3, not unit: normalised here as
-    `softras.pipeline.vertex.world_normals` does), alpha kept.  Vertices in
-    parallel (a scan's 36k vertices: 4.4 ms on one thread)."""
-    for v in numba.prange(base.shape[0]):
-        nx, ny, nz = _unit(normals[v, 0], normals[v, 1], normals[v, 2])
-        out[v, 0], out[v, 1], out[v, 2] = _lit_point(base[v, 0], base[v, 1], base[v, 2], world[v, 0], world[v, 1],
-                                                     world[v, 2], nx, ny, nz, lights, lighting)
-        out[v, 3] = base[v, 3]
+def _make_lighting_loops(sources: str):
+    """`_vertex_lighting` and `_face_lighting`, cached with the stamp of
+    this folder's and `softras.pipeline.libm`'s sources as a closure
+    variable (`softras.kernels.stamp`): they inline libm's pow, and numba's
+    cache would check this file alone.  sources : in the cache key only."""
+
+    @numba.njit(cache=True, error_model="numpy", parallel=True)
+    def vertex_lighting(base, world, normals, lights, lighting, out):
+        """Gouraud's lit vertex colours into out (V, 4): base (V, 4) straight,
+        world positions (V, 3), world normals (V, 3, not unit: normalised here as
+        `softras.pipeline.vertex.world_normals` does), alpha kept.  Vertices in
+        parallel (a scan's 36k vertices: 4.4 ms on one thread)."""
+        stamp = sources                 # noqa: F841  (the cache key)
+        for v in numba.prange(base.shape[0]):
+            nx, ny, nz = _unit(normals[v, 0], normals[v, 1], normals[v, 2])
+            out[v, 0], out[v, 1], out[v, 2] = _lit_point(base[v, 0], base[v, 1], base[v, 2], world[v, 0],
+                                                         world[v, 1], world[v, 2], nx, ny, nz, lights, lighting)
+            out[v, 3] = base[v, 3]
+
+    @numba.njit(cache=True, error_model="numpy")
+    def face_lighting(world, triangles, base, lights, lighting, out):
+        """Flat shading's colours into out (K, 4) for triangles (K, 3) vertex
+        indices: `softras.pipeline.render.flat_colors`, the face normal
+        (`softras.pipeline.fragment.face_normals`: ``normalize(cross(p1 - p0, p2
+        - p0))``, numpy.cross's operations), the centroid (``(p0 + p1 + p2) /
+        3``, numpy's mean) and the provoking (last) vertex's straight colour of
+        base (V, 4), alpha kept."""
+        stamp = sources                 # noqa: F841  (the cache key)
+        for k in range(triangles.shape[0]):
+            i0, i1, i2 = triangles[k, 0], triangles[k, 1], triangles[k, 2]
+            ax, ay, az = world[i1, 0] - world[i0, 0], world[i1, 1] - world[i0, 1], world[i1, 2] - world[i0, 2]
+            bx, by, bz = world[i2, 0] - world[i0, 0], world[i2, 1] - world[i0, 1], world[i2, 2] - world[i0, 2]
+            nx, ny, nz = _unit(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
+            cx = (world[i0, 0] + world[i1, 0] + world[i2, 0]) / 3.0
+            cy = (world[i0, 1] + world[i1, 1] + world[i2, 1]) / 3.0
+            cz = (world[i0, 2] + world[i1, 2] + world[i2, 2]) / 3.0
+            out[k, 0], out[k, 1], out[k, 2] = _lit_point(base[i2, 0], base[i2, 1], base[i2, 2], cx, cy, cz,
+                                                         nx, ny, nz, lights, lighting)
+            out[k, 3] = base[i2, 3]
+
+    return vertex_lighting, face_lighting
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _face_lighting(world, triangles, base, lights, lighting, out):
-    """Flat shading's colours into out (K, 4) for triangles (K, 3) vertex
-    indices: `softras.pipeline.render.flat_colors`, the face normal
-    (`softras.pipeline.fragment.face_normals`: ``normalize(cross(p1 - p0, p2
-    - p0))``, numpy.cross's operations), the centroid (``(p0 + p1 + p2) /
-    3``, numpy's mean) and the provoking (last) vertex's straight colour of
-    base (V, 4), alpha kept."""
-    for k in range(triangles.shape[0]):
-        i0, i1, i2 = triangles[k, 0], triangles[k, 1], triangles[k, 2]
-        ax, ay, az = world[i1, 0] - world[i0, 0], world[i1, 1] - world[i0, 1], world[i1, 2] - world[i0, 2]
-        bx, by, bz = world[i2, 0] - world[i0, 0], world[i2, 1] - world[i0, 1], world[i2, 2] - world[i0, 2]
-        nx, ny, nz = _unit(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
-        cx = (world[i0, 0] + world[i1, 0] + world[i2, 0]) / 3.0
-        cy = (world[i0, 1] + world[i1, 1] + world[i2, 1]) / 3.0
-        cz = (world[i0, 2] + world[i1, 2] + world[i2, 2]) / 3.0
-        out[k, 0], out[k, 1], out[k, 2] = _lit_point(base[i2, 0], base[i2, 1], base[i2, 2], cx, cy, cz,
-                                                     nx, ny, nz, lights, lighting)
-        out[k, 3] = base[i2, 3]
+_vertex_lighting, _face_lighting = _make_lighting_loops(sources_stamp(libm))
 
 
 def base_colors(scene, draw) -> np.ndarray:

@@ -10,8 +10,10 @@ and the exact kernel (`softras.kernels.exact`) those of
 `softras.kernels.interpolate`, `softras.kernels.light` and
 `softras.kernels.texture`, and it calls the stages'
 (`softras.pipeline.rasterize`, `softras.pipeline.ops`,
-`softras.pipeline.texture`, `softras.pipeline.libm`): an edit of one of
-those alone would load a stale kernel.  The stamp is a closure variable of
+`softras.pipeline.texture`, `softras.pipeline.libm`), and Gouraud's and
+flat shading's lighting loops (`softras.kernels.light`) inline
+`softras.pipeline.libm`'s pow: an edit of one of those alone would load a
+stale kernel.  The stamp is a closure variable of
 the kernel, and numba keys a closure's cache on its variables, so any edit
 of a module it covers compiles the kernel again.
 """

@@ -230,7 +230,7 @@ def llvmpipe_pow(x: np.ndarray, y: float) -> np.ndarray:
     log2: exponent bits + ``z P(z^2)`` with z = (m - 1) / (m + 1) for the
     mantissa m in [1, 2).  exp2: x clamped to [-126.99999, 128],
     ``2^floor(x)`` in the exponent bits times a polynomial of the fraction.
-    (N,) float in, (N,) float32 out.  softras's pipeline uses C's pow (`libm.power`);
+    (N,) float in, (N,) float32 out.  softras's pipeline uses a float64 pow (`libm.power`);
     this emulation exists to measure what the approximation costs
     (docs/textures_and_lighting.md, "llvmpipe's pow").
     """
