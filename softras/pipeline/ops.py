@@ -279,19 +279,32 @@ def _resolve_exact(stored, out):
 def _resolve_bytes(stored, out):
     """out[H - 1 - y, x] = llvmpipe's float32 resolve of stored[y, x] (see
     `resolve_llvmpipe_bytes`): v * (1/255) summed in sample order, times 1/S, times
-    255, clamped, rounded half to even; every step in float32."""
+    255, clamped, rounded half to even; every step in float32.
+
+    Row by row, a sample at a time into a row of float32 sums: each loop
+    runs over a row's pixels and channels, the four channels of a pixel
+    side by side, which LLVM turns into SIMD (a loop per pixel and channel
+    over the samples did not: 5.6 ms against 3.3 ms for 512^2 at 4 samples,
+    medians of 30 alternating, two threads).  Each sum is still the samples'
+    in sample order."""
     height, width, n_samples = stored.shape[0], stored.shape[1], stored.shape[2]
     inv_255 = np.float32(1.0 / 255.0)
     inv_n = np.float32(1.0 / n_samples)
     for y in numba.prange(height):
+        row = stored[y].reshape(width, n_samples * 4)          # pixel x: sample s's channel c at 4 s + c
+        top = out[height - 1 - y].reshape(width * 4)
+        total = np.empty(width * 4, np.float32)
         for x in range(width):
             for c in range(4):
-                total = np.float32(0.0)
-                for s in range(n_samples):
-                    total += np.float32(stored[y, x, s, c]) * inv_255
-                value = np.float32(np.float32(total * inv_n) * np.float32(255.0))
-                value = min(max(value, np.float32(0.0)), np.float32(255.0))
-                out[height - 1 - y, x, c] = np.uint8(np.rint(value))
+                total[4 * x + c] = np.float32(row[x, c]) * inv_255
+        for s in range(1, n_samples):
+            for x in range(width):
+                for c in range(4):
+                    total[4 * x + c] += np.float32(row[x, 4 * s + c]) * inv_255
+        for j in range(width * 4):
+            value = np.float32(np.float32(total[j] * inv_n) * np.float32(255.0))
+            value = min(max(value, np.float32(0.0)), np.float32(255.0))
+            top[j] = np.uint8(np.rint(value))
 
 
 # Rows a box resolve converts at once (`resolve`).
