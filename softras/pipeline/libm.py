@@ -16,7 +16,7 @@ around the same scalar functions that the kernels inline (`_power`,
 on every CPU and C library, and LLVM compiles a loop of it to SIMD (the
 Phong lanes': 17 ns a value against 30 ns for C's pow on a Cascade Lake,
 docs/speed.md).  Its error, measured against C's pow (docs/numerics.md):
-at most 3 ulp where |y ln x| <= 1, and about 2 ulp more per unit of
+at most 3 ulp where |y ln x| <= 1, and at most 3.5 ulp per unit of
 |y ln x| beyond (the rounding of ln x, scaled by y).  `_log2` is C's
 (exact precision's level of detail, not a hot loop).  (Were numba given
 Intel's SVML, with the icc_rt package, LLVM could vectorise `_log2`'s
