@@ -96,9 +96,9 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting):
     interpolated and the normal normalised
     (`softras.pipeline.render.phong_attributes`), then
     `softras.pipeline.fragment.blinn_phong` with the light table (L, _NL)
-    and the `Lighting`.  In passes over the lanes, so that all but the
-    power compile to SIMD: the interpolation; per light its vectors, then
-    the power (a call per lane), then its term."""
+    and the `Lighting`.  In passes over the lanes, each of which compiles
+    to SIMD: the interpolation; per light its vectors, then the power
+    (`softras.pipeline.libm._power`, no library call), then its term."""
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
     cc = _corner_colors(colors, t)
     px3 = (lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0])
