@@ -44,7 +44,8 @@ def pytest_sessionstart(session):
 
         # Every variant: the tile drivers, exact precision's kernels and the
         # line kernel, in an order that gives two workers about the same
-        # compile time (1u, 4u, 0u, exact and lines, 1t, 4t, 0t: ~3 min each).
+        # compile time (every other one: gw0 1u, 4u, 0u, exact; gw1 lines,
+        # 1t, 4t, 0t; ~3 min each).
         variants = [(1, False), prepare.LINES, (4, False), (1, True), (0, False), (4, True), prepare.EXACT,
                     (0, True)]
         assert sorted(variants, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],

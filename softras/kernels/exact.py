@@ -46,6 +46,7 @@ import numpy as np
 from softras.kernels import exact_lines
 from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _weights_at
 from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, flat_corner_colors, scene_lighting
+from softras.kernels.ops import _uses_depth
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
@@ -552,8 +553,7 @@ def _make_draw(sources: str):
                     u = v = (0.0, 0.0, 0.0)
                     if textured:
                         u, v = _triple(uv, t, 0), _triple(uv, t, 1)
-                    # The perspective weights of all k fragments first: a loop that
-                    # LLVM vectorises (the divisions four at a time).
+                    # The perspective weights of all k fragments first: a loop LLVM vectorises.
                     if shading != FLAT or textured:
                         for f in range(k):
                             w = _weights_at(corners, out_x[f] + 0.5, out_y[f] + 0.5)
@@ -581,7 +581,7 @@ def _make_draw(sources: str):
                         for s in range(n_samples):
                             if not (mask >> s) & 1:
                                 continue
-                            if depth_func != 0:     # (`depth_at_samples` from corner 0; no test, no z, no read)
+                            if _uses_depth(depth_func, write_z):    # (`depth_at_samples` from corner 0)
                                 z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
                                 if not ops._depth_pass(depth_func, z, depth[py, px, s]):
                                     continue

@@ -169,6 +169,14 @@ def _locked(variant, blocking: bool = True):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
+def _frame() -> dict:
+    """The preparation scenes' picture and camera (the near plane 0.5 in
+    front of the eye), a new dict each time."""
+    return {"softras_scene": 1, "width": 64, "height": 48,
+            "camera": {"projection": "perspective", "fov_y": 60, "near": 0.5, "far": 20,
+                       "eye": [0, 0, 1], "target": [0, 0, 0]}}
+
+
 def preparation_scene(samples: int, textured: bool, lines: bool = True) -> dict:
     """A small scene that reaches every kernel of one variant: lit grids of
     18432 triangles, over PARALLEL_SETUP of them inside the frustum (the
@@ -193,9 +201,7 @@ def preparation_scene(samples: int, textured: bool, lines: bool = True) -> dict:
     textures = {name: {"procedural": "checker", "size": [16, 16], "min_filter": name + "_mipmap_linear"
                        if name == "linear" else name}
                 for name in (("linear", "nearest") if textured else ())}
-    return {"softras_scene": 1, "width": 64, "height": 48, "samples": samples, "textures": textures,
-            "camera": {"projection": "perspective", "fov_y": 60, "near": 0.5, "far": 20,
-                       "eye": [0, 0, 1], "target": [0, 0, 0]},
+    return {**_frame(), "samples": samples, "textures": textures,
             "lights": [{"type": "point", "position": [1, 2, 3]}, {"type": "directional", "direction": [0, -1, 0]}],
             "nodes": nodes}
 
@@ -204,9 +210,7 @@ def line_preparation_scene() -> dict:
     """A scene of lines crossing the near plane: the line kernels
     (`softras.kernels.lines`, `softras.kernels.exact_lines`) and the line
     clipper's compiled loop."""
-    return {"softras_scene": 1, "width": 64, "height": 48,
-            "camera": {"projection": "perspective", "fov_y": 60, "near": 0.5, "far": 20,
-                       "eye": [0, 0, 1], "target": [0, 0, 0]},
+    return {**_frame(),
             "nodes": [{"name": "lines", "mesh": {"primitive": "lines", "indices": [[0, 1], [2, 3]],
                                                  "positions": [[-1, -0.5, 0.9], [1, 0.4, -3], [1, -0.3, 0.95],
                                                                [-1, 0.2, -2]]}}]}

@@ -28,6 +28,7 @@ Arrays are float64 of any shape; the results have the argument's shape.
 from __future__ import annotations
 
 import math
+import sys
 
 import numba
 import numpy as np
@@ -56,9 +57,10 @@ def _from_bits(typingctx, b):
 # exact for the whole numbers |k| < 2^21 that multiply it here.
 _LN2_HI = 6.93147180369123816490e-01
 _LN2_LO = 1.90821492927058770002e-10
-_INV_LN2 = 1.44269504088896338700e+00
-_SQRT2 = 1.4142135623730951
-_LEAST_NORMAL = 2.2250738585072014e-308
+_INV_LN2 = 1.0 / math.log(2.0)
+_SQRT2 = math.sqrt(2.0)
+_LEAST_NORMAL = sys.float_info.min
+_TWO_64 = 2.0 ** 64
 _MANTISSA, _EXPONENT_ONE = (1 << 52) - 1, 1023 << 52
 # ln m = 2 atanh(s) = 2 (s + s^3/3 + ... + s^23/23), s = (m - 1)/(m + 1):
 # for m in [sqrt(1/2), sqrt(2)), |s| < 0.172 and the first term left out
@@ -78,7 +80,7 @@ def _ln(x):
     e ln 2 + 2 atanh((m - 1)/(m + 1)), the series in Estrin's order (fewer
     dependent steps than Horner's: 17 ns a pow against 21)."""
     subnormal = x < _LEAST_NORMAL
-    b = _bits(x * 18446744073709551616.0 if subnormal else x)
+    b = _bits(x * _TWO_64 if subnormal else x)
     e = ((b >> 52) - 1023) - (64 if subnormal else 0)
     m = _from_bits((b & _MANTISSA) | _EXPONENT_ONE)
     if m >= _SQRT2:
@@ -115,9 +117,9 @@ def _exp(t):
     k = np.int64(kf)
     after = 1.0
     if k < -1000:
-        k, after = k + 64, 2.0 ** -64
+        k, after = k + 64, 1.0 / _TWO_64
     elif k > 1000:
-        k, after = k - 64, 2.0 ** 64
+        k, after = k - 64, _TWO_64
     return (er * _from_bits((k + 1023) << 52)) * after
 
 
