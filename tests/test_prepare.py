@@ -278,3 +278,79 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
         monkeypatch.setattr(Path, "read_bytes", lambda self: read_bytes(self) + (b"#" if self == edited else b""))
         assert stamp.sources_stamp(ops, texture, rasterize) == before, module.__name__
         monkeypatch.setattr(Path, "read_bytes", read_bytes)
+
+
+def _cached_kernels():
+    """Every compiled function of softras that numba caches on disk for
+    itself: ``cache=True`` and not ``inline="always"`` (an inlined function
+    is compiled into its callers, under their keys), found in the modules'
+    globals and in the dicts and tuples there (the tile drivers)."""
+    import importlib
+    import pkgutil
+
+    from numba.core.registry import CPUDispatcher
+
+    found = {}
+    for info in pkgutil.walk_packages(softras.__path__, "softras."):
+        if info.name in ("softras.__main__", "softras.pytest_plugin"):
+            continue
+        for value in vars(importlib.import_module(info.name)).values():
+            for item in (value.values() if isinstance(value, dict) else
+                         value if isinstance(value, tuple) else (value,)):
+                if (isinstance(item, CPUDispatcher) and item.py_func.__module__.startswith("softras.")
+                        and type(item._cache).__name__ != "NullCache"
+                        and item.targetoptions.get("inline") != "always"):
+                    found[id(item)] = item
+    return list(found.values())
+
+
+def _reached(kernel):
+    """The compiled functions that ``kernel``'s code calls or inlines, at any
+    depth: the dispatchers its code names (a global, a module's attribute,
+    a closure variable), theirs, and so on."""
+    import types
+
+    from numba.core.registry import CPUDispatcher
+
+    seen, todo = {}, [kernel]
+    while todo:
+        function = todo.pop().py_func
+        codes, names = [function.__code__], set()
+        while codes:
+            code = codes.pop()
+            names |= set(code.co_names)
+            codes += [const for const in code.co_consts if isinstance(const, types.CodeType)]
+        values = [function.__globals__.get(name) for name in names]
+        values += [getattr(value, name, None) for value in list(values)
+                   if isinstance(value, types.ModuleType) and value.__name__.startswith("softras.")
+                   for name in names]
+        values += [cell.cell_contents for cell in function.__closure__ or ()]
+        for value in values:
+            if isinstance(value, CPUDispatcher) and id(value) not in seen:
+                seen[id(value)] = value
+                todo.append(value)
+    return list(seen.values())
+
+
+def test_every_cached_kernel_is_keyed_on_the_compiled_code_it_reaches():
+    """numba's cache checks a kernel's own source file alone, but the cached
+    code holds everything the kernel calls or inlines: a cached kernel that
+    reaches another module's compiled code must be made with a key of that
+    module's source as a closure variable (`softras.pipeline.cache_key`),
+    or an edit of that module alone would load it stale."""
+    from softras.pipeline import cache_key
+
+    kernels = _cached_kernels()
+    assert len(kernels) > 50                           # (the scan sees softras's kernels)
+    problems = []
+    for kernel in kernels:
+        own = Path(sys.modules[kernel.py_func.__module__].__file__)
+        files = {Path(sys.modules[callee.py_func.__module__].__file__) for callee in _reached(kernel)} - {own}
+        keys = [cell.cell_contents for cell in kernel.py_func.__closure__ or ()
+                if isinstance(cell.cell_contents, str)]
+        covered = {name for key in keys for name in cache_key.covered(key)}
+        missing = sorted(path.resolve().relative_to(cache_key.PACKAGE).as_posix() for path in files)
+        missing = [name for name in missing if name not in covered]
+        if missing:
+            problems.append(f"{kernel.py_func.__module__}.{kernel.py_func.__qualname__}: {', '.join(missing)}")
+    assert problems == []

@@ -137,7 +137,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str, off
     fields = [getattr(out, field.name) for field in dataclasses.fields(out)]
     count = _setup(np.ascontiguousarray(clip, np.float64), width, height,
                    CULL_CODES[setup.window_cull(cull, front_face)], front_face == "ccw",
-                   np.ascontiguousarray(offsets, np.float64), float(unit), setup.TIE_RULES[tie_rule], *fields)
+                   _sample_box(np.asarray(offsets, np.float64)), float(unit), setup.TIE_RULES[tie_rule], *fields)
     return setup.TriangleSetup(*(field[:count] for field in fields))
 
 
@@ -201,20 +201,20 @@ def _box_edge(v, lo, hi):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _setup(clip, width, height, cull, front_ccw, offsets, unit, tie_rule, triangle, corner, window, inv_w, raster,
+def _setup(clip, width, height, cull, front_ccw, box, unit, tie_rule, triangle, corner, window, inv_w, raster,
            edge_a, edge_b, edge_x0, edge_y0, inclusive, bbox, front):
     """`softras.pipeline.setup.setup_triangles` (exact precision) of the
     clipped triangles clip (T, 3, 4), with the same operations in the same
     order: the viewport transform ``(c / w) W/2 + W/2``, twice the signed
     area, culling (cull: CULL_CODES, counter-clockwise terms), the corners
     made counter-clockwise, the edge equations (`edge_equations`), the tie
-    rule's inclusive edges, the pixel box from the extremes of the sample
-    offsets (S, 2) (`softras.pipeline.rasterize._sample_box`) and ``unit``.  Writes the visible
+    rule's inclusive edges, the pixel box from the sample offsets' extremes box (their
+    `_sample_box`, from the caller: `softras.pipeline.cache_key`) and ``unit``.  Writes the visible
     triangles' rows, in order, into the `TriangleSetup`'s arrays (T rows
     each) and returns their count."""
     scale = (width / 2.0, height / 2.0, 0.5)
     sign_a, sign_b = tie_rule
-    min_ox, max_ox, min_oy, max_oy = _sample_box(offsets)
+    min_ox, max_ox, min_oy, max_oy = box
     wx, wy, wz, ww = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     n = 0
     for t in range(clip.shape[0]):

@@ -1,27 +1,28 @@
-"""A cache key for compiled code that inlines other modules' kernels.
+"""The cache key of the compiled kernels that inline other modules' kernels.
 
 numba's on-disk cache checks the source file of the function it compiled and
-nothing else, but the tile drivers (`softras.kernels.draw`) and the line
-kernel (`softras.kernels.lines`) inline kernels of every module of this
-folder and some of the stages' (`softras.pipeline.ops`,
-`softras.pipeline.texture`, `softras.pipeline.rasterize`,
-`softras.pipeline.libm`, and for the line kernel `softras.pipeline.lines`),
-and the exact kernel (`softras.kernels.exact`) those of
-`softras.kernels.interpolate`, `softras.kernels.light` and
-`softras.kernels.texture`, and it calls the stages'
-(`softras.pipeline.rasterize`, `softras.pipeline.ops`,
+nothing else (`softras.pipeline.cache_key`), but the tile drivers
+(`softras.kernels.draw`) and the line kernel (`softras.kernels.lines`)
+inline kernels of every module of this folder and some of the stages'
+(`softras.pipeline.ops`, `softras.pipeline.texture`,
+`softras.pipeline.rasterize`, `softras.pipeline.libm`, and for the line
+kernel `softras.pipeline.lines`), and the exact kernel
+(`softras.kernels.exact`) those of `softras.kernels.interpolate`,
+`softras.kernels.light` and `softras.kernels.texture`, and it calls the
+stages' (`softras.pipeline.rasterize`, `softras.pipeline.ops`,
 `softras.pipeline.texture`, `softras.pipeline.libm`), and Gouraud's and
 flat shading's lighting loops (`softras.kernels.light`) inline
 `softras.pipeline.libm`'s pow: an edit of one of those alone would load a
-stale kernel.  The stamp is a closure variable of
-the kernel, and numba keys a closure's cache on its variables, so any edit
-of a module it covers compiles the kernel again.
+stale kernel.  The stamp is a closure variable of the kernel, and numba
+keys a closure's cache on its variables, so any edit of a module it covers
+compiles the kernel again.
 """
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
+
+from softras.pipeline.cache_key import sources_key
 
 
 # Modules of this folder that no other kernel inlines: prepare.py holds no
@@ -31,11 +32,9 @@ NOT_INLINED = ("prepare.py", "exact.py", "exact_lines.py")
 
 
 def sources_stamp(*stage_modules) -> str:
-    """SHA-256 of the sources of softras.kernels (every module of this
-    folder but `NOT_INLINED`) and of the ``stage_modules`` (modules of
-    softras.pipeline whose kernels are inlined too)."""
-    digest = hashlib.sha256()
+    """`softras.pipeline.cache_key.sources_key` of the sources of
+    softras.kernels (every module of this folder but `NOT_INLINED`) and of
+    the ``stage_modules`` (modules of softras.pipeline whose kernels are
+    inlined too)."""
     paths = [path for path in sorted(Path(__file__).resolve().parent.glob("*.py")) if path.name not in NOT_INLINED]
-    for path in paths + [Path(module.__file__) for module in stage_modules]:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()
+    return sources_key(paths + [Path(module.__file__) for module in stage_modules])

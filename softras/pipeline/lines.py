@@ -183,8 +183,8 @@ def clip_lines(clip: np.ndarray, indices: np.ndarray, *, precision: str = "gl",
     c, finite, planes = clip_inputs(clip, precision, policy, width, height)
     n = len(indices)
     out = ClippedLines(np.empty((n, 2, 4)), np.empty(n, np.int64), np.empty((n, 2, 2)), np.empty((n, 2), bool))
-    count = _clip_all(c, finite, indices, planes, c.dtype.type(0), out.clip, out.weights, out.generated,
-                      out.source)
+    count = _clip_all(c, finite, indices, _plane_distances(c, planes), c.dtype.type(0), out.clip, out.weights,
+                      out.generated, out.source)
     return ClippedLines(out.clip[:count], out.source[:count], out.weights[:count], out.generated[:count])
 
 
@@ -203,14 +203,16 @@ def clip_inputs(clip: np.ndarray, precision: str, policy: str, width: int,
 
 
 @numba.njit(cache=True)
-def _clip_all(c, finite, indices, planes, zero, out_clip, out_weights, out_generated, source):
+def _clip_all(c, finite, indices, dist, zero, out_clip, out_weights, out_generated, source):
     """`clip_lines` of every line of indices (M, 2) (`_clip_line`, in order):
     the survivors written to rows 0 .. count - 1 of out_clip (M, 2, 4),
     out_weights (M, 2, 2), out_generated (M, 2) and source (M,) (the input
     line).  c (N, 4): the clip positions in the draw module's type, finite
-    (N,) whether the float64 positions are finite, planes (6, 4) in c's
-    type, zero its 0.  Returns count."""
-    dist = _plane_distances(c, planes)
+    (N,) whether the float64 positions are finite, dist (N, 6) their
+    distances to the policy's planes (`softras.pipeline.clip._plane_distances`,
+    called by the caller: another module's compiled code, whose edits this
+    function's cache entry would not see, `softras.pipeline.cache_key`), zero
+    c's 0.  Returns count."""
     count = 0
     for line in range(indices.shape[0]):
         i0, i1 = indices[line, 0], indices[line, 1]
@@ -554,20 +556,21 @@ def _binned_region(qx, qy, bottom_edge_rule, multisample, width, height, region)
 
 
 @numba.njit(cache=True)
-def _raster_quad(qx, qy, bottom_edge_rule, gl, offsets, unit, width, height,
+def _raster_quad(qx, qy, bottom_edge_rule, gl, offsets, box, unit, width, height,
                  out_x, out_y, out_mask, start, write):
     """Cover one line quad; write fragments from `start` when `write`.  Returns the count.
 
     Candidates are found per pixel row from the quad's extent in that row's
     sample band (a superset, `_row_span`); the four exact plane tests decide
     (`_pixel_mask`).  (`softras.kernels.lines` walks the same rows and
-    columns.)
+    columns.)  box: the offsets' extremes
+    (`softras.pipeline.rasterize._sample_box`, called by the caller, as
+    `_clip_all`'s distances).
     """
     planes = _quad_planes(qx, qy, bottom_edge_rule)
     region = np.array([0, width - 1, 0, height - 1])
     if gl and not _binned_region(qx, qy, bottom_edge_rule, offsets.shape[0] > 1, width, height, region):
         return 0
-    box = _sample_box(offsets)
     py0, py1 = _quad_rows(qy, unit, box, region)
     count = 0
     for py in range(py0, py1 + 1):
@@ -697,7 +700,7 @@ def _line_t(x0, y0, x1, y1, x, y, rectangular, gl):
 
 
 @numba.njit(cache=True, parallel=True)
-def _cover(qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, width, height,
+def _cover(qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, box, unit, width, height,
            starts, window, out_x, out_y, out_mask, out_line, out_t, write):
     """Every line's coverage (`_raster_quad`), lines in parallel: counted
     (write False; the out arrays may be empty) or written from ``starts``
@@ -709,7 +712,7 @@ def _cover(qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit,
     for i in numba.prange(n):
         if ok[i]:
             start = starts[i] if write else 0
-            k = _raster_quad(qx[i], qy[i], bottom_edge_rule, gl, offsets, unit, width, height,
+            k = _raster_quad(qx[i], qy[i], bottom_edge_rule, gl, offsets, box, unit, width, height,
                              out_x, out_y, out_mask, start, write)
             counts[i] = k
             if write:
@@ -784,7 +787,8 @@ def rasterize_lines(window: np.ndarray, width: int, height: int, precision: str 
     if gl:
         ends = ends.astype(np.float32).astype(np.float64)
     centre = 0.5 + attribute_shift(precision, rectangular)
-    args = (qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, unit, int(width), int(height))
+    args = (qx, qy, ok, bottom_edge_rule, gl, rectangular, centre, offsets, _sample_box(offsets), unit,
+            int(width), int(height))
     empty, none = Fragments.allocate(np.zeros(0, np.int64))      # (the count pass writes nothing)
     frags, starts = Fragments.allocate(_cover(*args, none, ends, empty.x, empty.y, empty.mask, empty.tri,
                                               np.zeros(0), False))

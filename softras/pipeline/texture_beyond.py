@@ -47,6 +47,7 @@ import numpy as np
 
 from softras.scene import texels
 from softras.pipeline import texture
+from softras.pipeline.cache_key import sources_key
 from softras.pipeline.texture import MipTexture
 
 FILTERS = ("ripmap", "ewa", "level0")
@@ -250,43 +251,53 @@ def footprint_covariance(du: np.ndarray, dv: np.ndarray, max_eccentricity: float
     return S, np.sqrt(np.maximum(minor2, wanted))
 
 
-@numba.njit(cache=True)
-def _ewa_kernel(texels, offsets, widths, heights, level, s, t, s00, s01, s11, wrap_s, wrap_t,
-                alpha, out, reads):
-    """Gaussian-weighted mean over one level's texels inside each ellipse.
+def _make_ewa_kernel(key: str):
+    """`_ewa_kernel`, cached under ``key`` (`softras.pipeline.cache_key`): it
+    inlines `softras.pipeline.texture.wrap_index`."""
 
-    level, s, t : (N,); s00, s01, s11 : (N,) the ellipse S_l in that level's
-    texels (reconstruction filter included).  Adds nothing: writes out (N, 4)
-    float64 in [0, 255] and reads (N,) texels with weight > 0.
-    """
-    for k in range(len(s)):
-        lvl = level[k]
-        wl, hl, base = widths[lvl], heights[lvl], offsets[lvl]
-        det = s00[k] * s11[k] - s01[k] * s01[k]
-        m00, m01, m11 = s11[k] / det, -s01[k] / det, s00[k] / det      # S_l^-1
-        cu = s[k] * wl - 0.5                                           # centre, level texels
-        cv = t[k] * hl - 0.5
-        hu, hv = np.sqrt(s00[k]), np.sqrt(s11[k])                      # bounding box half sizes
-        acc = np.zeros(4)
-        den = 0.0
-        n_reads = 0
-        for j in range(int(np.floor(cv - hv)), int(np.ceil(cv + hv)) + 1):
-            dv = j - cv
-            jj = texture.wrap_index(j, hl, wrap_t)
-            for i in range(int(np.floor(cu - hu)), int(np.ceil(cu + hu)) + 1):
-                du = i - cu
-                q = m00 * du * du + 2.0 * m01 * du * dv + m11 * dv * dv
-                if q < 1.0:
-                    ii = texture.wrap_index(i, wl, wrap_s)
-                    w = np.exp(-alpha * q)
-                    texel = texels[base + jj * wl + ii]
-                    for c in range(4):
-                        acc[c] += w * texel[c]
-                    den += w
-                    n_reads += 1
-        for c in range(4):
-            out[k, c] = acc[c] / den
-        reads[k] = n_reads
+    @numba.njit(cache=True)
+    def _ewa_kernel(texels, offsets, widths, heights, level, s, t, s00, s01, s11, wrap_s, wrap_t,
+                    alpha, out, reads):
+        """Gaussian-weighted mean over one level's texels inside each ellipse.
+
+        level, s, t : (N,); s00, s01, s11 : (N,) the ellipse S_l in that level's
+        texels (reconstruction filter included).  Adds nothing: writes out (N, 4)
+        float64 in [0, 255] and reads (N,) texels with weight > 0.
+        """
+        cache_key = key                     # noqa: F841  (in the cache key only)
+        for k in range(len(s)):
+            lvl = level[k]
+            wl, hl, base = widths[lvl], heights[lvl], offsets[lvl]
+            det = s00[k] * s11[k] - s01[k] * s01[k]
+            m00, m01, m11 = s11[k] / det, -s01[k] / det, s00[k] / det      # S_l^-1
+            cu = s[k] * wl - 0.5                                           # centre, level texels
+            cv = t[k] * hl - 0.5
+            hu, hv = np.sqrt(s00[k]), np.sqrt(s11[k])                      # bounding box half sizes
+            acc = np.zeros(4)
+            den = 0.0
+            n_reads = 0
+            for j in range(int(np.floor(cv - hv)), int(np.ceil(cv + hv)) + 1):
+                dv = j - cv
+                jj = texture.wrap_index(j, hl, wrap_t)
+                for i in range(int(np.floor(cu - hu)), int(np.ceil(cu + hu)) + 1):
+                    du = i - cu
+                    q = m00 * du * du + 2.0 * m01 * du * dv + m11 * dv * dv
+                    if q < 1.0:
+                        ii = texture.wrap_index(i, wl, wrap_s)
+                        w = np.exp(-alpha * q)
+                        texel = texels[base + jj * wl + ii]
+                        for c in range(4):
+                            acc[c] += w * texel[c]
+                        den += w
+                        n_reads += 1
+            for c in range(4):
+                out[k, c] = acc[c] / den
+            reads[k] = n_reads
+
+    return _ewa_kernel
+
+
+_ewa_kernel = _make_ewa_kernel(sources_key([texture.__file__]))
 
 
 def ewa_level(tex: MipTexture, flat, S: np.ndarray, st: np.ndarray, level: np.ndarray):

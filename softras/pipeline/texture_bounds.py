@@ -135,6 +135,7 @@ import numba
 import numpy as np
 
 from softras.pipeline import interpolate, texture
+from softras.pipeline.cache_key import sources_key
 from softras.pipeline.texture import MipTexture
 
 __all__ = [
@@ -518,34 +519,44 @@ def _mipmap_linear(acc: _Range, idx: np.ndarray, a: np.ndarray, b: np.ndarray, l
 # ----------------------------------------------------------------------------- anisotropic
 
 
-@numba.njit(cache=True)
-def _rect_extremes(level_lo, level_hi, i0, i1, j0, j1, wrap_s, wrap_t, out_lo, out_hi):
-    """Per fragment k, min of level_lo and max of level_hi over the texels
-    (i, j), i0[k] <= i <= i1[k], j0[k] <= j <= j1[k], wrapped (WRAP_CODES).
-    level_lo, level_hi : (H, W, 4) float64; writes out_lo, out_hi (N, 4)."""
-    h, w = level_lo.shape[0], level_lo.shape[1]
-    for k in range(len(i0)):
-        a0, a1, b0, b1 = i0[k], i1[k], j0[k], j1[k]
-        if wrap_s == 1:
-            a0, a1 = min(max(a0, 0), w - 1), min(max(a1, 0), w - 1)
-        elif a1 - a0 >= (w if wrap_s == 0 else 2 * w):
-            a1 = a0 + (w if wrap_s == 0 else 2 * w) - 1
-        if wrap_t == 1:
-            b0, b1 = min(max(b0, 0), h - 1), min(max(b1, 0), h - 1)
-        elif b1 - b0 >= (h if wrap_t == 0 else 2 * h):
-            b1 = b0 + (h if wrap_t == 0 else 2 * h) - 1
-        for c in range(4):
-            out_lo[k, c] = np.inf
-            out_hi[k, c] = -np.inf
-        for j in range(b0, b1 + 1):
-            jj = texture.wrap_index(j, h, wrap_t)
-            for i in range(a0, a1 + 1):
-                ii = texture.wrap_index(i, w, wrap_s)
-                for c in range(4):
-                    if level_lo[jj, ii, c] < out_lo[k, c]:
-                        out_lo[k, c] = level_lo[jj, ii, c]
-                    if level_hi[jj, ii, c] > out_hi[k, c]:
-                        out_hi[k, c] = level_hi[jj, ii, c]
+def _make_rect_extremes(key: str):
+    """`_rect_extremes`, cached under ``key`` (`softras.pipeline.cache_key`): it
+    inlines `softras.pipeline.texture.wrap_index`."""
+
+    @numba.njit(cache=True)
+    def _rect_extremes(level_lo, level_hi, i0, i1, j0, j1, wrap_s, wrap_t, out_lo, out_hi):
+        """Per fragment k, min of level_lo and max of level_hi over the texels
+        (i, j), i0[k] <= i <= i1[k], j0[k] <= j <= j1[k], wrapped (WRAP_CODES).
+        level_lo, level_hi : (H, W, 4) float64; writes out_lo, out_hi (N, 4)."""
+        cache_key = key                     # noqa: F841  (in the cache key only)
+        h, w = level_lo.shape[0], level_lo.shape[1]
+        for k in range(len(i0)):
+            a0, a1, b0, b1 = i0[k], i1[k], j0[k], j1[k]
+            if wrap_s == 1:
+                a0, a1 = min(max(a0, 0), w - 1), min(max(a1, 0), w - 1)
+            elif a1 - a0 >= (w if wrap_s == 0 else 2 * w):
+                a1 = a0 + (w if wrap_s == 0 else 2 * w) - 1
+            if wrap_t == 1:
+                b0, b1 = min(max(b0, 0), h - 1), min(max(b1, 0), h - 1)
+            elif b1 - b0 >= (h if wrap_t == 0 else 2 * h):
+                b1 = b0 + (h if wrap_t == 0 else 2 * h) - 1
+            for c in range(4):
+                out_lo[k, c] = np.inf
+                out_hi[k, c] = -np.inf
+            for j in range(b0, b1 + 1):
+                jj = texture.wrap_index(j, h, wrap_t)
+                for i in range(a0, a1 + 1):
+                    ii = texture.wrap_index(i, w, wrap_s)
+                    for c in range(4):
+                        if level_lo[jj, ii, c] < out_lo[k, c]:
+                            out_lo[k, c] = level_lo[jj, ii, c]
+                        if level_hi[jj, ii, c] > out_hi[k, c]:
+                            out_hi[k, c] = level_hi[jj, ii, c]
+
+    return _rect_extremes
+
+
+_rect_extremes = _make_rect_extremes(sources_key([texture.__file__]))
 
 
 def _anisotropic_bounds(tex, st, candidates, lam_lo, lam_hi, levels_lo, levels_hi, lookup):
