@@ -69,7 +69,8 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
     """Only the README demo scene is softras's own (``softras demo``); nothing
     else in softras/ looks for scenes or golden images beside its source.
     (The kernels read their own source files, for numba's cache key:
-    `softras.kernels.stamp.sources_stamp`, and for the ready marks of
+    `softras.kernels.stamp.sources_stamp`, which names them relative to the
+    package, `softras.pipeline.cache_key.PACKAGE`, and for the ready marks of
     `softras.kernels.prepare`, which sit beside numba's cache in the
     kernels' __pycache__: no user folder.)"""
     found = []
@@ -82,7 +83,8 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
     assert found == [("softras/cli.py", "_PACKAGE"),
                      ("softras/kernels/prepare.py", "package"),
                      ("softras/kernels/prepare.py", 'return Path(__file__).resolve().parent / "__pycache__"'),
-                     ("softras/kernels/stamp.py", "paths")], found
+                     ("softras/kernels/stamp.py", "paths"),
+                     ("softras/pipeline/cache_key.py", "PACKAGE")], found
 
 
 @pytest.mark.gl
