@@ -315,7 +315,9 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
             arithmetic: str = "exact", output: str = "uint8") -> np.ndarray:
     """Filter the samples to one colour per pixel and convert to the output image.
 
-    color : (H, W, S, 4) premultiplied RGBA per sample, GL's y-up rows.
+    color : (H, W, S, 4) premultiplied RGBA per sample, GL's y-up rows; for
+        the tent filter also an RGBA8 sample buffer's bytes (uint8, byte k
+        for k/255: `_tent_filter`).
     positions : (S, 2) sample positions in [0, 1)^2 within the pixel (y up);
         needed by "tent" only.
     filter : "box" -- the mean of the pixel's own samples (GL's resolve);
@@ -355,22 +357,58 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
 
 
 def _tent_filter(color: np.ndarray, positions: np.ndarray) -> np.ndarray:
-    """(H, W, S, 4), (S, 2) -> (H, W, 4) float64 tent-weighted mean (see `resolve`)."""
-    height, width = color.shape[:2]
-    total = np.zeros((height, width, 4))
-    weight = np.zeros((height, width, 1))
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            # Samples of neighbour (x + dx, y + dy), seen from pixel (x, y)'s centre.
-            w = _tent(dx + positions[:, 0] - 0.5) * _tent(dy + positions[:, 1] - 0.5)   # (S,)
-            if not w.any():
-                continue
-            # Output pixels whose neighbour exists: rows y0:y1, columns x0:x1.
-            y0, y1 = max(0, -dy), height - max(0, dy)
-            x0, x1 = max(0, -dx), width - max(0, dx)
-            if y0 >= y1 or x0 >= x1:
-                continue
-            neighbour = color[y0 + dy:y1 + dy, x0 + dx:x1 + dx]            # (h, w, S, 4)
-            total[y0:y1, x0:x1] += np.tensordot(neighbour, w, axes=([2], [0]))
-            weight[y0:y1, x0:x1] += w.sum()
-    return total / weight
+    """(H, W, S, 4), (S, 2) -> (H, W, 4) float64 tent-weighted mean (see `resolve`).
+
+    color : float values per sample, or an RGBA8 sample buffer's bytes
+    (uint8, byte k read as the float64 k / 255, as ``color / 255.0`` would
+    give it, without that float copy of the buffer).  Per pixel and
+    channel, the 9 neighbours in row order (dy, then dx, from -1): a
+    neighbour that exists and that the tent reaches adds its samples'
+    values times their weights, summed in sample order, to the pixel's
+    total, and the weights' sum (numpy's) to its weight; the result is
+    total / weight.  A compiled loop over the pixels (`_tent_sums`); the
+    numpy version, a tensordot per neighbour, summed in its BLAS's order and
+    took 0.18 s of a 512^2 render at 4 samples (box: 8 ms; now 40 ms)."""
+    weights = [_tent(dx + positions[:, 0] - 0.5) * _tent(dy + positions[:, 1] - 0.5)
+               for dy in (-1, 0, 1) for dx in (-1, 0, 1)]                       # 9 x (S,)
+    sums = np.array([w.sum() for w in weights])
+    out = np.empty(color.shape[:2] + (4,))
+    _tent_sums(np.ascontiguousarray(color), color.dtype == np.uint8, np.ascontiguousarray(weights), sums, out)
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _tent_sums(color, as_bytes, weights, sums, out):
+    """out[y, x] = the tent-weighted mean of `_tent_filter` at every pixel:
+    color (H, W, S, 4) float values, or bytes k standing for k / 255 when
+    as_bytes; weights (9, S) per neighbour (row order, dy then dx from -1)
+    and sample, sums (9,) their sums.  The four channels side by side in the
+    innermost loops (each channel's sums in the documented order)."""
+    height, width, n_samples = color.shape[0], color.shape[1], color.shape[2]
+    values = np.arange(256) / 255.0                     # byte k -> k / 255, as numpy divides
+    for y in numba.prange(height):
+        total, partial = np.empty(4), np.empty(4)
+        for x in range(width):
+            total[:] = 0.0
+            weight = 0.0
+            for k in range(9):
+                ny, nx = y + k // 3 - 1, x + k % 3 - 1
+                if sums[k] == 0.0 or ny < 0 or ny >= height or nx < 0 or nx >= width:
+                    continue
+                for c in range(4):
+                    partial[c] = _value(color[ny, nx, 0, c], as_bytes, values) * weights[k, 0]
+                for s in range(1, n_samples):
+                    for c in range(4):
+                        partial[c] = partial[c] + _value(color[ny, nx, s, c], as_bytes, values) * weights[k, s]
+                for c in range(4):
+                    total[c] = total[c] + partial[c]
+                weight = weight + sums[k]
+            for c in range(4):
+                out[y, x, c] = total[c] / weight
+
+
+@numba.njit(cache=True, inline="always")
+def _value(v, as_bytes, values):
+    """A sample buffer's value v as float64: for a byte k (as_bytes) k / 255,
+    from the table ``values``."""
+    return values[np.int64(v)] if as_bytes else np.float64(v)

@@ -296,14 +296,15 @@ def resolve(job: Job, color: np.ndarray) -> np.ndarray:
 
 def resolve_bytes(job: Job, stored: np.ndarray) -> np.ndarray:
     """`resolve` of an RGBA8 job's samples given as their bytes, (H, W, S, 4)
-    uint8, byte k for the stages' k/255 (the compiled path's buffer): the box
-    filter straight from the bytes (`ops.resolve_llvmpipe_bytes`,
-    `ops.resolve_exact_bytes`, no float buffers), the tent from the k/255
-    values.  The same picture as ``resolve(job, stored / 255.0)``."""
+    uint8, byte k for the stages' k/255 (the compiled path's buffer), with no
+    float copy of the buffer: the box filter by `ops.resolve_llvmpipe_bytes`
+    or `ops.resolve_exact_bytes`, the tent by `ops.resolve`, which reads the
+    bytes as k/255 itself.  The same picture as ``resolve(job, stored /
+    255.0)``."""
     if job.resolve_filter == "box":
         llvmpipe = _arithmetic(job) == "llvmpipe"
         return ops.resolve_llvmpipe_bytes(stored) if llvmpipe else ops.resolve_exact_bytes(stored)
-    return resolve(job, stored / 255.0)
+    return resolve(job, stored)
 
 
 def _arithmetic(job: Job) -> str:

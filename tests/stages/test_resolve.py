@@ -105,6 +105,46 @@ def test_tent_keeps_a_flat_colour_and_equals_box_for_the_centre_sample():
     np.testing.assert_array_equal(ops.resolve(one, sampling.GL_CENTER, filter="tent"), ops.resolve(one))
 
 
+def _tent_in_numpy(color, positions):
+    """The tent filter written in numpy in `ops._tent_filter`'s documented
+    order: per neighbour (dy, then dx), its samples times their weights
+    summed in sample order, added to the total."""
+    height, width = color.shape[:2]
+    total, weight = np.zeros((height, width, 4)), np.zeros((height, width, 1))
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            w = ops._tent(dx + positions[:, 0] - 0.5) * ops._tent(dy + positions[:, 1] - 0.5)
+            y0, y1, x0, x1 = max(0, -dy), height - max(0, dy), max(0, -dx), width - max(0, dx)
+            if not w.any() or y0 >= y1 or x0 >= x1:
+                continue
+            neighbour = color[y0 + dy:y1 + dy, x0 + dx:x1 + dx]
+            partial = neighbour[:, :, 0] * w[0]
+            for s in range(1, len(w)):
+                partial = partial + neighbour[:, :, s] * w[s]
+            total[y0:y1, x0:x1] += partial
+            weight[y0:y1, x0:x1] += w.sum()
+    return total / weight
+
+
+@pytest.mark.parametrize("positions", [sampling.GL_CENTER, sampling.grid(2), sampling.grid(3), sampling.halton(5),
+                                       sampling.halton(16), sampling.rotated_grid(4)],
+                         ids=["1", "grid4", "grid9", "halton5", "halton16", "rotated4"])
+def test_the_compiled_tent_is_the_numpy_sum_and_reads_bytes_as_their_values(positions):
+    """`ops._tent_filter` (a compiled loop) gives the float64 values of the
+    same sums written in numpy, to the bit; fed an RGBA8 buffer's bytes it
+    gives the picture of their k/255 values (what `render.resolve_bytes`
+    passes it, without a float copy)."""
+    rng = np.random.default_rng(len(positions))
+    stored = rng.integers(0, 256, size=(7, 9, len(positions), 4)).astype(np.uint8)
+    values = stored / 255.0
+    np.testing.assert_array_equal(ops._tent_filter(values, positions), _tent_in_numpy(values, positions))
+    wide = rng.normal(size=(5, 6, len(positions), 4)) * 3.0                        # (unclamped, signed)
+    np.testing.assert_array_equal(ops._tent_filter(wide, positions), _tent_in_numpy(wide, positions))
+    for output in ("uint8", "float32"):
+        np.testing.assert_array_equal(ops.resolve(stored, positions, filter="tent", output=output),
+                                      ops.resolve(values, positions, filter="tent", output=output))
+
+
 def test_float_output_is_unclamped_and_flipped():
     color = np.zeros((2, 1, 2, 4))
     color[0, 0] = [[1.5, -0.5, 0.25, 1.0], [0.5, -0.5, 0.25, 1.0]]      # GL row 0 = bottom
