@@ -28,11 +28,6 @@ BUGS = [(m.name, scene) for m in MUTATIONS if not m.permitted for scene in m.sce
 #: The consistent fill-rule swap, which the specification permits (see below).
 SWAP = next(m for m in MUTATIONS if m.permitted)
 
-# The module's fixtures (every bug on every scene, ~20 s) are computed once
-# per worker that runs one of its tests: all of them on one worker
-# (``--dist loadgroup``, pyproject.toml).
-pytestmark = pytest.mark.xdist_group("planted_bugs")
-
 
 @pytest.fixture(scope="module")
 def references():

@@ -446,7 +446,6 @@ def gl_pictures(request, tmp_path_factory):
 
 
 @pytest.mark.gl
-@pytest.mark.xdist_group("texture_bounds_gl")         # (gl_pictures' renders once, on one worker)
 @pytest.mark.parametrize("name", BOUND_SCENES + VARIANT_SCENES)
 def test_gl_within_bounds(gl_pictures, name):
     """Every pixel of llvmpipe's and softpipe's picture that is not a
