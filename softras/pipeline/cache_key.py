@@ -36,5 +36,7 @@ def sources_key(paths) -> str:
 
 def covered(key: str) -> list[str]:
     """The file names (relative to the softras folder) that `sources_key`'s
-    ``key`` covers."""
-    return key.split(" ")[1:]
+    ``key`` covers; none for a string that is not such a key."""
+    digest, *names = key.split(" ")
+    is_key = len(digest) == 64 and all(ch in "0123456789abcdef" for ch in digest)
+    return names if is_key else []

@@ -210,7 +210,7 @@ def _clip_all(c, finite, indices, dist, zero, out_clip, out_weights, out_generat
     line).  c (N, 4): the clip positions in the draw module's type, finite
     (N,) whether the float64 positions are finite, dist (N, 6) their
     distances to the policy's planes (`softras.pipeline.clip._plane_distances`,
-    called by the caller: another module's compiled code, whose edits this
+    computed by the caller: another module's compiled code, whose edits this
     function's cache entry would not see, `softras.pipeline.cache_key`), zero
     c's 0.  Returns count."""
     count = 0
@@ -564,8 +564,8 @@ def _raster_quad(qx, qy, bottom_edge_rule, gl, offsets, box, unit, width, height
     sample band (a superset, `_row_span`); the four exact plane tests decide
     (`_pixel_mask`).  (`softras.kernels.lines` walks the same rows and
     columns.)  box: the offsets' extremes
-    (`softras.pipeline.rasterize._sample_box`, called by the caller, as
-    `_clip_all`'s distances).
+    (`softras.pipeline.rasterize._sample_box`, computed by the caller, as
+    `_clip_all`'s distances are).
     """
     planes = _quad_planes(qx, qy, bottom_edge_rule)
     region = np.array([0, width - 1, 0, height - 1])
