@@ -81,7 +81,6 @@ def test_no_module_resolves_a_default_folder_from_its_own_location():
                 line = source.splitlines()[node.lineno - 1].strip()
                 found.append((str(path.relative_to(REPO)), line.split(" = ")[0]))
     assert found == [("softras/cli.py", "_PACKAGE"),
-                     ("softras/kernels/prepare.py", "package"),
                      ("softras/kernels/prepare.py", 'return Path(__file__).resolve().parent / "__pycache__"'),
                      ("softras/kernels/stamp.py", "paths"),
                      ("softras/pipeline/cache_key.py", "PACKAGE")], found

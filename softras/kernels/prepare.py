@@ -48,6 +48,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from softras.pipeline.cache_key import PACKAGE, sources_key
+
 MODE_WAIT, MODE_BACKGROUND = "wait", "background"
 MODES = (MODE_WAIT, MODE_BACKGROUND)
 ENV = "SOFTRAS_COMPILE"
@@ -97,12 +99,10 @@ def _stamp() -> str:
 
     from softras.kernels import draw
 
-    digest = hashlib.sha256(f"{numba.__version__}\0{llvm.get_host_cpu_name()}\0{draw._SOURCES}\0".encode())
-    package = Path(__file__).resolve().parents[1]
-    exact_kernels = [package / "kernels" / name for name in ("exact.py", "exact_lines.py")]
-    for path in sorted(package.glob("pipeline/*.py")) + exact_kernels:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()[:16]
+    sources = sources_key([*PACKAGE.glob("pipeline/*.py"), PACKAGE / "kernels" / "exact.py",
+                           PACKAGE / "kernels" / "exact_lines.py"])
+    text = f"{numba.__version__}\0{llvm.get_host_cpu_name()}\0{draw._SOURCES}\0{sources}"
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def cache_dir() -> Path:

@@ -14,6 +14,7 @@ for calls that no key covers.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from pathlib import Path
 
@@ -22,16 +23,21 @@ PACKAGE = Path(__file__).resolve().parent.parent        # the softras folder
 
 def sources_key(paths) -> str:
     """``"<SHA-256> <name> <name> ..."``: the digest of the files at
-    ``paths`` (each one's name and bytes, in the order given) and their
-    names relative to the softras folder ("pipeline/texture.py"), so that a
-    reader, and the test, can see what the key covers."""
+    ``paths`` (each one's name and bytes, in the order of the names) and
+    their names relative to the softras folder ("pipeline/texture.py"), so
+    that a reader, and the test, can see what the key covers.  One key per
+    set of files, whatever the order given, read and hashed once per
+    process (the kernels' modules ask for the same sets at import)."""
+    return _key(tuple(sorted({Path(path).resolve().relative_to(PACKAGE).as_posix() for path in paths})))
+
+
+@functools.cache
+def _key(names: tuple[str, ...]) -> str:
+    """`sources_key` of the files named (relative to the softras folder)."""
     digest = hashlib.sha256()
-    names = []
-    for path in map(Path, paths):
-        name = path.resolve().relative_to(PACKAGE).as_posix()
-        digest.update(name.encode() + b"\0" + path.read_bytes())
-        names.append(name)
-    return " ".join([digest.hexdigest()] + names)
+    for name in names:
+        digest.update(name.encode() + b"\0" + (PACKAGE / name).read_bytes())
+    return " ".join((digest.hexdigest(),) + names)
 
 
 def covered(key: str) -> list[str]:
