@@ -549,7 +549,8 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     if state.alpha_test:                    # (before the depth test: the colour at every lane)
         for l in range(n):
             lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
-        _lane_weights(n, t, tri_f, lf, uv, False)
+        if not state.flat:                  # (a flat colour is read without weights)
+            _lane_weights(n, t, tri_f, lf, uv, False)
         _lane_alpha_test(n, t, colors, lf, li, _LI_COV, False, state.flat, state.cutoff)
     if use_depth:
         _lane_depths(n, t, tri_f, positions, li, n_samples)
@@ -570,7 +571,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
             for c in range(3):
                 lf[_LF_W + c, kept] = lf[_LF_W + c, l]
         kept += p != 0
-    if not state.alpha_test:
+    if not state.alpha_test and not state.flat:
         _lane_weights(kept, t, tri_f, lf, uv, False)
     if state.lit:
         _phong_words(kept, t, colors, lit, lf, li, lights, lighting, False)
