@@ -357,3 +357,13 @@ def test_every_cached_kernel_is_keyed_on_the_compiled_code_it_reaches():
         if missing:
             problems.append(f"{kernel.py_func.__module__}.{kernel.py_func.__qualname__}: {', '.join(missing)}")
     assert problems == []
+
+
+def test_a_normal_or_bump_map_needs_the_textured_driver():
+    """A mapped draw without a colour texture still takes the textured tile
+    driver (its quads give the map's derivatives): the variant prepared for
+    it is the textured one."""
+    scene = softras.load_scene(SCENES_DIR / "bump_mapped_plane.json")
+    assert any(d.material.bump_map is not None and d.material.texture is None for d in scene.draws)
+    assert prepare.variants(scene, 1) == {(1, True)}
+    assert prepare.variants(scene, 4) == {(4, True)}

@@ -38,10 +38,10 @@ Line draws take `softras.kernels.lines` (clipping, set-up, coverage and the
 per-fragment work in one compiled kernel, with the line stage's functions,
 into the same byte framebuffer).
 `unsupported(scene, ...)` says why a scene must take the general path (lit
-or textured lines, normal and bump maps, other precisions or clipping
-policies...).  Every shading model is drawn here, at any sample count and
-positions, with every texture filter GL has (anisotropic included) and the
-alpha test.
+or textured lines, other precisions or clipping policies...).  Every
+shading model is drawn here, at any sample count and positions, with every
+texture filter GL has (anisotropic included), normal and bump maps (on the
+textured driver, `softras.kernels.texture._map_normals`) and the alpha test.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
 `face_colors`): Gouraud per vertex
@@ -86,7 +86,8 @@ from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
-                                     _lanes_bilinear_fixed, _lanes_lod, _sample_lane, texture_tables)
+                                     _lanes_bilinear_fixed, _lanes_lod, _map_normals, _quad_levels, _sample_lane,
+                                     texture_tables)
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import libm, ops, rasterize, sampling, setup, texture, vertex
 from softras.pipeline.rasterize import _sample_box
@@ -110,9 +111,12 @@ Samples = namedtuple("Samples", ["offsets", "positions"])
 # whether the colour is the triangle's, not interpolated (flat shading,
 # `flat_corner_colors`), and whether it is lit per fragment (Phong shading,
 # `softras.kernels.light._phong_words`), and the alpha test: whether the
-# material has one, and its cutoff (`softras.kernels.interpolate._lane_alpha_test`).
+# material has one, and its cutoff (`softras.kernels.interpolate._lane_alpha_test`),
+# whether the colour is multiplied by a texture, and the normal map (MAP_CODES,
+# `softras.kernels.texture._map_normals`) and the bump map's scale.
 DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat", "lit", "alpha_test",
-                                     "cutoff"])
+                                     "cutoff", "texture", "mapped", "bump_scale"])
+NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
 
 
 # ----------------------------------------------------------------------------- dispatch
@@ -135,14 +139,20 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | 
             if material.line_problems():            # (the stages refuse these; the loader too)
                 return f"{draw.path}: lines with {', '.join(material.line_problems())}"
             continue
-        if material.normal_map is not None or material.bump_map is not None:
-            return f"{draw.path}: normal or bump map"
-        if material.texture is not None:
-            tex = scene.textures[material.texture]
+        for name in (material.texture, material.normal_map, material.bump_map):
+            if name is None:
+                continue
+            tex = scene.textures[name]
             if (tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
                     or tex.mag_filter not in FILTER_CODES or tex.min_filter not in MIN_FILTERS):
                 return f"{draw.path}: texture sampler state"
     return None
+
+
+def textured(material) -> bool:
+    """Whether a triangle draw of ``material`` takes a textured tile driver:
+    it has a texture, or a normal or bump map (both need uvs and whole quads)."""
+    return material.texture is not None or material.normal_map is not None or material.bump_map is not None
 
 
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
@@ -200,16 +210,17 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
         return
     n_threads = numba.get_num_threads()
     material = draw.material
-    textured = material.texture is not None
+    mapped, map_name = ((NORMAL_MAP, material.normal_map) if material.normal_map is not None else
+                        (BUMP_MAP, material.bump_map) if material.bump_map is not None else (NO_MAP, None))
     lit = material.shading == "phong"
     base = base_colors(scene, draw)                                          # straight, per vertex
-    uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured
+    uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured(material)
            else np.zeros((0, 2)))
     world_normals, lights, lighting = phong_inputs(scene, draw) if lit else NO_LIGHTING
     tris = Triangles(_scratch.take("tri_f", (n, _NF), np.float64), _scratch.take("tri_i", (n, _NI), np.int64),
                      _scratch.take("bbox", (n, 4), np.int64), _scratch.take("colors", (n, 3, 4), np.float64),
-                     _scratch.take("uv", (n if textured else 1, 3, 2), np.float64),
-                     _scratch.take("lit", (n if lit else 1, 3, 6), np.float64))
+                     _scratch.take("uv", (n if textured(material) else 1, 3, 2), np.float64),
+                     _scratch.take("lit", (n, 3, world_normals.shape[1]) if lit else (1, 3, 6), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
     _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs, world_normals), tris, n_threads,
            _scratch)
@@ -220,20 +231,25 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
     if flat:                # (only the visible triangles are binned: the others' colours are never read)
         tris.colors[visible] = flat_corner_colors(scene, draw, base, clipped.source[visible])
     sampler, texels = NO_TEXTURE
-    if textured:
+    if material.texture is not None:
         sampler, texels = texture_tables(texture.prepare(scene.textures[material.texture]), texture_fixed_point)
+    map_sampler, map_texels = NO_TEXTURE
+    if map_name is not None:
+        map_sampler, map_texels = texture_tables(texture.prepare(scene.textures[map_name]), texture_fixed_point)
     tiles_x = (width + TILE - 1) // TILE
     tiles_y = (height + TILE - 1) // TILE
     bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     cutoff = material.alpha_cutoff
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
-                      bool(textured and not flat and not lit and cutoff is None and plain_colors(base)), flat, lit,
-                      cutoff is not None, float(cutoff or 0.0))
-    draw_tiles = _DRAW_TILES[driver_samples(len(offsets)), textured]
+                      bool(material.texture is not None and not flat and not lit and cutoff is None
+                           and plain_colors(base)), flat, lit,
+                      cutoff is not None, float(cutoff or 0.0), material.texture is not None, mapped,
+                      float(material.bump_scale))
+    draw_tiles = _DRAW_TILES[driver_samples(len(offsets)), textured(material)]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
-               lights, tuple(lighting), n_threads)
+               map_sampler, tuple(map_texels), lights, tuple(lighting), n_threads)
 
 
 _scratch = _Scratch()
@@ -272,12 +288,14 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     in the cache key only."""
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
-    def draw_tiles(bins, tris, samples, fb, state, sampler, tex, lights, lighting, n_threads):
+    def draw_tiles(bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting,
+                   n_threads):
         """`softras.pipeline.render.draw_triangles` for one triangle draw after its
         set-up: rasterize, shade and apply every binned triangle (`Bins` of the
         set-up `Triangles`) at the `Samples`, tiles in parallel, into the
         `Framebuffer` fb with the `DrawState`, the texture's `Sampler` and
-        `Texels` tex, and for Phong shading the light table and `Lighting`
+        `Texels` tex, the normal or bump map's (map_sampler, map_tex), and
+        for Phong shading the light table and `Lighting`
         (`softras.kernels.light`).  The records but the sampler come as plain tuples
         (`softras.kernels.setup.Clipped`) and are named again here.  (A
         parallel loop takes its records apart into its arguments, one level
@@ -300,10 +318,11 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
             fb_r = Framebuffer(*fb)
             state_r = DrawState(*state)
             tex_r = Texels(*tex)
+            map_r = Texels(*map_tex)
             for tile in range(r, n_tiles, n_threads):
                 if textured:
-                    _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, lights,
-                                   lighting, lanes, n_samples)
+                    _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, map_sampler,
+                                   map_r, lights, lighting, lanes, n_samples)
                 else:
                     _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes,
                                count)
@@ -384,7 +403,8 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
 
 
 @numba.njit(error_model="numpy")
-def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, lighting, lanes, n_samples):
+def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting, lanes,
+                   n_samples):
     """One 64x64 tile of a textured draw: as `_flat_tile`, but the blocks
     start at even pixels (whole 2x2 quads, for the texture derivatives), the
     covered quads are listed (`softras.kernels.rasterize._list_quads`, or
@@ -394,7 +414,9 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
     fragments, as `softras.pipeline.render.draw_triangles` does them, on the n
     lanes (n / 4 quads, with pixel, centre and coverage) of one triangle in
     one 8x8 block.  Arguments as `_flat_tile`, plus the texture's `Sampler`
-    and `Texels` tex.
+    and `Texels` tex and the normal or bump map's (map_sampler, map_tex).
+    A draw with a map and no colour texture comes here too (``state.texture``
+    False): its quads give the map's derivatives.
 
     Per quad the top-left, top-right and bottom-left lanes give the texture
     derivatives (`softras.pipeline.interpolate.quad_derivatives`) and the
@@ -450,11 +472,16 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
             _lane_weights(n, t, tris.f, lf, tris.uv, True)               # weights and (s, t), vectorised
             if use_depth:
                 _lane_depths(n, t, tris.f, samples.positions, li, count)   # (vectorised)
+            if state.mapped != NO_MAP:        # (first: it leaves the map's levels in the level rows)
+                _map_normals(n, lf, li, lu, texel, map_sampler, map_tex.bytes, map_tex.words, map_tex.levels,
+                             map_tex.ewa, state.mapped == BUMP_MAP, state.bump_scale)
             # The level of detail of every quad (before the depth test), kept on the
             # quad's first lane; whether a quad samples two levels.
-            if sampler.aniso:                             # (one level each, never vectorised)
+            any_two = False
+            if not state.texture:
+                pass
+            elif sampler.aniso:                           # (one level each, never vectorised)
                 _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
-                any_two = False
             else:
                 any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
             # Depth test (scalar); a quad without a passed sample samples level 0 alone.
@@ -470,40 +497,14 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
                     li[_LI_PASS, l] = p
                     quad_passed |= p
                 block_passed |= quad_passed
-                l = 4 * q
-                level0, level1 = li[_LI_LEVEL, l], li[_LI_LEVEL + 1, l]
-                image_filter, two, frac = li[_LI_IMGF, l], li[_LI_TWO, l] != 0, lf[_LF_FRAC, l]
-                if not quad_passed:
-                    level0 = level1 = 0
-                    image_filter = sampler.mag_filter
-                    two = False
-                    frac = 0.0
-                w8 = np.int64(np.floor(frac * 256)) if two else 0
-                block_two |= two
-                # The quad's levels on its lanes: what each sampler reads.
-                if vectorised:
-                    for lv in range(2 if any_two else 1):     # (the second level's rows only where read)
-                        level = level1 if (lv == 1 and two) else level0
-                        lw, lh, base = table[level, 1], table[level, 2], table[level, 0] >> 2
-                        scale_s, scale_t = np.float32(lw * 256), np.float32(lh * 256)
-                        for l in range(4 * q, 4 * q + 4):
-                            li[_LI_BASE + lv, l] = base
-                            li[_LI_LW + lv, l] = lw
-                            li[_LI_LH + lv, l] = lh
-                            lf[_LF_SCALE + 2 * lv, l] = scale_s
-                            lf[_LF_SCALE + 2 * lv + 1, l] = scale_t
-                for l in range(4 * q, 4 * q + 4):
-                    li[_LI_W8, l] = w8
-                    if not vectorised:
-                        li[_LI_LEVEL, l] = level0
-                        li[_LI_LEVEL + 1, l] = level1
-                        li[_LI_IMGF, l] = image_filter
-                        li[_LI_TWO, l] = two
-                        lf[_LF_FRAC, l] = frac
+                if state.texture:                 # the quad's levels on its lanes: what each filter reads
+                    block_two |= _quad_levels(q, quad_passed != 0, sampler, table, vectorised, any_two, lf, li)
             if block_passed == 0:
                 continue
             words = state.plain and count == 1 and vectorised     # texels straight into _LI_WORD
-            if vectorised:
+            if not state.texture:
+                pass
+            elif vectorised:
                 if block_two:                         # (the level count a constant in each copy)
                     _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
                 else:
@@ -515,11 +516,12 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, lights, l
             # The fragment colour as llvmpipe's bytes, blended and written
             # (`softras.pipeline.ops.apply_fragments`).
             if state.lit:
-                _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, True)
+                _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, state.texture,
+                             state.mapped != NO_MAP)
             elif not words:
                 _lane_words(n, t, tris.colors, lf, li, True, state.flat)
             if state.alpha_test:
-                _lane_alpha_test(n, t, tris.colors, lf, li, _LI_PASS, True, state.flat, state.cutoff)
+                _lane_alpha_test(n, t, tris.colors, lf, li, _LI_PASS, state.texture, state.flat, state.cutoff)
                 for l in range(n):
                     if use_depth and li[_LI_PASS, l]:
                         li[_LI_PASS, l] = _depth_test_lane(li[_LI_PASS, l], li, l, depth, li[_LI_PY, l],
@@ -574,7 +576,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     if not state.alpha_test and not state.flat:
         _lane_weights(kept, t, tri_f, lf, uv, False)
     if state.lit:
-        _phong_words(kept, t, colors, lit, lf, li, lights, lighting, False)
+        _phong_words(kept, t, colors, lit, lf, li, lights, lighting, False, False)
     else:
         _lane_words(kept, t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)

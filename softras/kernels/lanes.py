@@ -29,9 +29,11 @@ LANES = 64                                   # 16 quads of an 8x8 block
 # float32 scales size * 256 of s and t, the mip blend fraction, the filtered
 # texel (r, g, b, a in [0, 1]), the Phong-lit straight colour (r, g, b, a),
 # Phong's world position, unit normal and unit view vector (x, y, z each),
-# and one light's N.L and specular term.
+# one light's N.L and specular term, a normal or bump map's tangent-space
+# normal (x, y, z), and the lane's own (s, t) while a bump map is sampled
+# beside it (`softras.kernels.texture._map_normals`).
 (_LF_CX, _LF_CY, _LF_W, _LF_S, _LF_T, _LF_SCALE, _LF_FRAC, _LF_TEX, _LF_LIT, _LF_POS, _LF_NRM, _LF_VIEW,
- _LF_NDL, _LF_SPEC, _NLF) = 0, 1, 2, 5, 6, 7, 11, 12, 16, 20, 23, 26, 29, 30, 31
+ _LF_NDL, _LF_SPEC, _LF_MAP, _LF_ST0, _NLF) = 0, 1, 2, 5, 6, 7, 11, 12, 16, 20, 23, 26, 29, 30, 31, 34, 36
 
 # int64 lane rows: pixel, coverage mask, depth-passed mask, per level the
 # texel word offset / width / height, mip weight (0..256), levels, image

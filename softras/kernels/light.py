@@ -25,8 +25,8 @@ import numba
 import numpy as np
 
 from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix
-from softras.kernels.lanes import (_LF_LIT, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW, _LF_W,
-                                   _LI_WORD)
+from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW,
+                                   _LF_W, _LI_WORD)
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import fragment, libm, render, vertex
 from softras.pipeline.libm import _power
@@ -46,13 +46,16 @@ NO_LIGHTING = (np.zeros((0, 6)), np.zeros((0, _NL)), Lighting(0.0, 0.0, 0.0, 0.0
 def phong_inputs(scene, draw) -> tuple[np.ndarray, np.ndarray, Lighting]:
     """What a Phong-shaded triangle draw's kernels read: per vertex the
     world position and the (not unit) world normal (V, 6) float64, the
-    inputs of `softras.pipeline.render.phong_attributes` (the set-up takes
-    them to the corners), and the scene's `light_table` and `Lighting`."""
-    mesh = draw.mesh
-    vertex_values = np.ascontiguousarray(np.concatenate(
-        [vertex.world_positions(mesh.positions, draw.world),
-         vertex.world_normals(mesh.normals, draw.world, unit=False)], axis=1))
-    return (vertex_values, *scene_lighting(scene, draw.material))
+    inputs of `softras.pipeline.render.phong_attributes`, and for a normal
+    or bump map the world tangent and handedness after them (V, 10,
+    `softras.pipeline.vertex.world_tangents`) (the set-up takes them to the
+    corners), and the scene's `light_table` and `Lighting`."""
+    mesh, material = draw.mesh, draw.material
+    columns = [vertex.world_positions(mesh.positions, draw.world),
+               vertex.world_normals(mesh.normals, draw.world, unit=False)]
+    if material.normal_map is not None or material.bump_map is not None:
+        columns.append(vertex.world_tangents(mesh.tangents, draw.world))
+    return (np.ascontiguousarray(np.concatenate(columns, axis=1)), *scene_lighting(scene, material))
 
 
 def scene_lighting(scene, material) -> tuple[np.ndarray, Lighting]:
@@ -86,7 +89,7 @@ def _dot(ax, ay, az, bx, by, bz):
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _phong_colors(n, t, colors, lit, lf, lights, lighting):
+def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
     """The straight Phong-lit colour of the n lanes of triangle t into the
     _LF_LIT rows (r, g, b lit, a interpolated).
 
@@ -94,11 +97,15 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting):
     colour (corner colours (T, 3, 4)), the world position and normal
     (lit (T, 3, 6): corner positions, then corner normals, not unit)
     interpolated and the normal normalised
-    (`softras.pipeline.render.phong_attributes`), then
+    (`softras.pipeline.render.phong_attributes`); when ``mapped``, the
+    normal perturbed by the _LF_MAP rows' tangent-space normal in the frame
+    of the interpolated world tangent (lit (T, 3, 10): then corner tangents
+    and handedness, `_perturb`); then
     `softras.pipeline.fragment.blinn_phong` with the light table (L, _NL)
     and the `Lighting`.  In passes over the lanes, each of which compiles
-    to SIMD: the interpolation; per light its vectors, then the power
-    (`softras.pipeline.libm._power`, no library call), then its term."""
+    to SIMD: the interpolation; the perturbation; per light its vectors,
+    then the power (`softras.pipeline.libm._power`, no library call), then
+    its term."""
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
     cc = _corner_colors(colors, t)
     px3 = (lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0])
@@ -119,6 +126,17 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting):
         lf[_LF_LIT + 1, l] = ambient * _mix(w, cc.g)
         lf[_LF_LIT + 2, l] = ambient * _mix(w, cc.b)
         lf[_LF_LIT + 3, l] = _mix(w, cc.a)
+    if mapped:
+        tx3 = (lit[t, 0, 6], lit[t, 1, 6], lit[t, 2, 6])
+        ty3 = (lit[t, 0, 7], lit[t, 1, 7], lit[t, 2, 7])
+        tz3 = (lit[t, 0, 8], lit[t, 1, 8], lit[t, 2, 8])
+        tw3 = (lit[t, 0, 9], lit[t, 1, 9], lit[t, 2, 9])
+        for l in range(n):
+            w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
+            lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l] = _perturb(
+                lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l],
+                _mix(w, tx3), _mix(w, ty3), _mix(w, tz3), _mix(w, tw3),
+                lf[_LF_MAP, l], lf[_LF_MAP + 1, l], lf[_LF_MAP + 2, l])
     for j in range(lights.shape[0]):
         ox, oy, oz, ow = (lights[j, _L_VECTOR], lights[j, _L_VECTOR + 1], lights[j, _L_VECTOR + 2],
                           lights[j, _L_VECTOR + 3])
@@ -136,6 +154,21 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting):
             lf[_LF_LIT, l] = lf[_LF_LIT, l] + _light_term(cr, diffuse, n_dot_l, _mix(w, cc.r), spec)
             lf[_LF_LIT + 1, l] = lf[_LF_LIT + 1, l] + _light_term(cg, diffuse, n_dot_l, _mix(w, cc.g), spec)
             lf[_LF_LIT + 2, l] = lf[_LF_LIT + 2, l] + _light_term(cb, diffuse, n_dot_l, _mix(w, cc.b), spec)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _perturb(nx, ny, nz, tx, ty, tz, tw, x, y, z):
+    """`softras.pipeline.fragment.perturb_normals` of one fragment: the
+    unit world normal n (normalised again, as the stage does), the world
+    tangent t and handedness tw, the tangent-space normal (x, y, z) ->
+    ``normalize(x T + y B + z N)`` with ``T = normalize(t - N (N.t))`` and
+    ``B = sign(tw) cross(N, T)`` (numpy's cross: a1 b2 - a2 b1, ...)."""
+    nx, ny, nz = _unit(nx, ny, nz)
+    d = _dot(nx, ny, nz, tx, ty, tz)
+    tx, ty, tz = _unit(tx - nx * d, ty - ny * d, tz - nz * d)
+    sign = -1.0 if tw < 0 else 1.0
+    bx, by, bz = sign * (ny * tz - nz * ty), sign * (nz * tx - nx * tz), sign * (nx * ty - ny * tx)
+    return _unit((x * tx + y * bx) + z * nx, (x * ty + y * by) + z * ny, (x * tz + y * bz) + z * nz)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -161,12 +194,13 @@ def _light_term(c, diffuse, n_dot_l, base, spec):
 
 
 @numba.njit(error_model="numpy")
-def _phong_words(n, t, colors, lit, lf, li, lights, lighting, textured):
-    """The fragment colour of the n lanes of triangle t, Phong-shaded, as
+def _phong_words(n, t, colors, lit, lf, li, lights, lighting, textured, mapped):
+    """The fragment colour of the n lanes of triangle t, Phong-shaded (with
+    the normal or bump map's normals of the _LF_MAP rows when ``mapped``), as
     llvmpipe's bytes: the lit colour (`_phong_colors`) times the _LF_TEX
     texel when textured (`softras.kernels.interpolate._color_word`), one
     RGBA8 word each into the _LI_WORD row."""
-    _phong_colors(n, t, colors, lit, lf, lights, lighting)
+    _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped)
     for l in range(n):
         texel = RGBA(1.0, 1.0, 1.0, 1.0)
         if textured:

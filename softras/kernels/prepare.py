@@ -78,10 +78,10 @@ def variants(scene, samples: int) -> set:
     (`softras.kernels.draw.driver_samples` of each pass: 1, 4, or 0 for any
     other count), and LINES if it draws lines (a wireframe alone waited 20-40 s
     for the line kernel, silently, when it was compiled in the render)."""
-    from softras.kernels.draw import driver_samples
+    from softras.kernels.draw import driver_samples, textured
     from softras.pipeline.sampling import sample_passes
 
-    needed = {(driver_samples(stop - start), draw.material.texture is not None)
+    needed = {(driver_samples(stop - start), textured(draw.material))
               for start, stop in sample_passes(samples) for draw in scene.draws if draw.mesh.primitive == "triangles"}
     if any(draw.mesh.primitive == "lines" for draw in scene.draws):
         needed.add(LINES)
