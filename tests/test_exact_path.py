@@ -24,7 +24,7 @@ from softras.kernels import exact, exact_lines
 from softras.pipeline import render as stages
 from softras.pipeline import sampling
 from softras.renderer import render_scene
-from test_fastpath import lit_scene, random_line_scene, random_scene
+from test_fastpath import lit_scene, mapped_scene, random_line_scene, random_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
 
@@ -69,6 +69,17 @@ def test_random_lit_scenes_give_the_stages_samples(shading, seed, samples):
     scene = softras.load_scene(lit_scene(seed, shading))
     assert all(d.material.shading == shading for d in scene.draws)
     assert_same_samples(scene, f"random {shading} scene {seed}", samples=samples)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("samples", [1, 4])
+def test_random_mapped_scenes_give_the_stages_samples(seed, samples):
+    """Normal- and bump-mapped Phong draws (`exact._map_texels`: the map at
+    the analytic derivatives, four taps for a bump map), textured (odd
+    seeds) or not; the anisotropic map's draws take the stages between the
+    kernel's."""
+    scene = softras.load_scene(mapped_scene(seed))
+    assert_same_samples(scene, f"random mapped scene {seed}", samples=samples)
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -153,8 +164,8 @@ def routes(monkeypatch) -> list:
 @pytest.mark.parametrize("options", [{}, {"texture_filter": "ewa"}, {"texture_bounds": "hi"}, {"anisotropy": 4}])
 def test_which_draws_take_the_kernel(options, monkeypatch):
     """Lines take the exact line kernel; anisotropic filtering, the filters
-    beyond GL's, texture bounds and normal or bump maps the stages' per-draw
-    functions; the rest, textured or not, the kernel."""
+    beyond GL's and texture bounds the stages' per-draw functions; the
+    rest, textured or not, the kernel."""
     data = random_line_scene(3)
     textured = random_scene(5, textured=True)
     data["nodes"] += textured["nodes"][:2]
@@ -173,19 +184,24 @@ def test_which_draws_take_the_kernel(options, monkeypatch):
     assert any(d.material.texture for d in scene.draws)
 
 
+@pytest.mark.parametrize("options", [{}, {"texture_bounds": "hi"}, {"anisotropy": 4}])
 @pytest.mark.parametrize("map_key", ["bump_map", "normal_map"])
-def test_normal_and_bump_mapped_draws_take_the_stages(map_key, monkeypatch):
+def test_normal_and_bump_mapped_draws_take_the_kernel(map_key, options, monkeypatch):
+    """A mapped draw takes the kernel, unless its map is filtered
+    anisotropically or the render asks for texture bounds (the stages)."""
     import json
     data = json.loads((Path(__file__).resolve().parents[1] / "scenes" / "bump_mapped_plane.json").read_text())
     material = data["nodes"][0]["material"]
     material[map_key] = material.pop("bump_map")
     if map_key == "normal_map":
         del material["bump_scale"]
+    for tex in data["textures"].values():
+        tex["max_anisotropy"] = options.get("anisotropy", 1)
     data["nodes"].append(dict(data["nodes"][0], name="plain", material={"shading": "phong"}))
     scene = softras.load_scene(data)
     drawn = routes(monkeypatch)
-    exact.render_samples(scene, exact_job(scene))
-    assert drawn == ["stages", "kernel"]
+    exact.render_samples(scene, exact_job(scene, **{k: v for k, v in options.items() if k != "anisotropy"}))
+    assert drawn == ["stages" if options else "kernel", "kernel"]
 
 
 def test_gl_precision_is_refused():

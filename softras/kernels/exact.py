@@ -3,13 +3,14 @@
 `softras.pipeline.render` in ``precision="exact"`` shades a draw's fragments
 as numpy arrays, ~300 bytes and a few dozen array passes a fragment.  Here
 a triangle draw (unlit, flat, Gouraud or Phong; textured with the GL
-filters, isotropic; alpha test, every depth function and blend equation)
-is rasterized, shaded and applied by one parallel kernel (`_draw`); its
-vertex and clip stages are the stages' own functions, its set-up and
-corner values compiled mirrors (`setup_triangles`, `corner_values`); line
-draws take `softras.kernels.exact_lines`, every other draw (normal and bump
-maps, anisotropic filtering, `softras.pipeline.texture_beyond`'s filters,
-texture bounds) the stages' `draw_triangles`, on the same float64 buffers;
+filters, isotropic; normal or bump mapped; alpha test, every depth function
+and blend equation) is rasterized, shaded and applied by one parallel
+kernel (`_draw`); its vertex and clip stages are the stages' own
+functions, its set-up and corner values compiled mirrors
+(`setup_triangles`, `corner_values`); line draws take
+`softras.kernels.exact_lines`, every other draw (anisotropic filtering,
+`softras.pipeline.texture_beyond`'s filters, texture bounds) the stages'
+`draw_triangles`, on the same float64 buffers;
 `resolve` makes the picture.  The bytes are the stages' (tests/test_exact_path.py):
 
 - set-up: `softras.pipeline.setup.setup_triangles` (`_setup`) and the
@@ -22,7 +23,9 @@ texture bounds) the stages' `draw_triangles`, on the same float64 buffers;
   `softras.pipeline.render.phong_attributes` and
   `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
   for a texture `softras.pipeline.render.uv_at_fragments`
-  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_texel`),
+  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_texel`), for
+  a normal or bump map `softras.pipeline.render.mapped_normals`
+  (`_map_texels`, `softras.kernels.light._perturb`),
   `shade_unlit`, `alpha_test`, each with the stages' operations in their order;
 - per sample: `softras.pipeline.ops.apply_fragments` without quantizing
   (its own `_depth_pass` and `_blend`);
@@ -35,7 +38,7 @@ Bands of `BAND_ROWS` rows are drawn in parallel (thread r of n draws bands
 r, r + n, ...); each walks the draw's triangles in order over its own rows,
 so every pixel sees the fragments in draw order, as the stages apply them.
 
-Why one module of ~620 lines: it is one kernel (`_draw`) and the compiled
+Why one module of ~700 lines: it is one kernel (`_draw`) and the compiled
 mirrors only it calls, in the order of the stages they mirror, under one
 cache key (`softras.kernels.stamp`: an edit of this file recompiles the exact
 kernels alone, none of the tile drivers).
@@ -50,7 +53,8 @@ import numpy as np
 
 from softras.kernels import exact_lines
 from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _weights_at
-from softras.kernels.light import NO_LIGHTING, _lit_point, _unit, base_colors, flat_corner_colors, scene_lighting
+from softras.kernels.light import (NO_LIGHTING, _lit_point, _perturb, _unit, base_colors, flat_corner_colors,
+                                   scene_lighting)
 from softras.kernels.ops import _uses_depth
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
@@ -66,21 +70,27 @@ BAND_ROWS = 16
 
 # Shading codes of `_draw`.
 UNLIT, FLAT, PHONG = 0, 1, 2          # (Gouraud is lit per vertex: UNLIT of its lit vertex colours)
+NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2     # a draw's normal or bump map
 
 
 def compiled(scene: Scene, draw, inputs: stages.Pass) -> bool:
-    """Whether `_draw` draws ``draw`` in the pass ``inputs``: triangles
-    without normal or bump map, untextured or with a texture that
-    `softras.pipeline.texture.sample` filters isotropically (no
-    ``texture_filter`` or ``texture_bounds`` for it, ``max_anisotropy`` 1)."""
+    """Whether `_draw` draws ``draw`` in the pass ``inputs``: triangles,
+    untextured or with a texture that `softras.pipeline.texture.sample`
+    filters isotropically (no ``texture_filter`` for it, ``max_anisotropy``
+    1), with or without a normal or bump map that it filters isotropically
+    too, no ``texture_bounds``."""
     material = draw.material
-    if draw.mesh.primitive != "triangles" or material.normal_map is not None or material.bump_map is not None:
+    if draw.mesh.primitive != "triangles":
         return False
-    if material.texture is None:
+    names = [name for name in (material.texture, material.normal_map, material.bump_map) if name is not None]
+    if not names:
         return True
-    tex = scene.textures[material.texture]
-    return (inputs.texture_bounds is None and texture_beyond.filter_for(inputs.texture_filter, tex.name) is None
-            and texture.effective_anisotropy(tex.max_anisotropy, gl=False) <= 1)
+    if inputs.texture_bounds is not None:
+        return False
+    tex = scene.textures[material.texture] if material.texture is not None else None
+    if tex is not None and texture_beyond.filter_for(inputs.texture_filter, tex.name) is not None:
+        return False
+    return all(texture.effective_anisotropy(scene.textures[name].max_anisotropy, gl=False) <= 1 for name in names)
 
 
 def render_samples(scene: Scene, job: stages.Job, reuse: bool = False) -> np.ndarray:
@@ -334,21 +344,29 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
         colors = flat_corner_colors(scene, draw, base, clipped.source[tris.triangle])
     else:
         colors = corners(base)                                         # (T', 3, 4)
+    map_name = material.normal_map if material.normal_map is not None else material.bump_map
     if shading == PHONG:
-        world = vertex.world_positions(mesh.positions, draw.world)
-        normals = vertex.world_normals(mesh.normals, draw.world, unit=False)
-        lit = corners(np.concatenate([world, normals], axis=1))                    # (T', 3, 6)
+        columns = [vertex.world_positions(mesh.positions, draw.world),
+                   vertex.world_normals(mesh.normals, draw.world, unit=False)]
+        if map_name is not None:
+            columns.append(vertex.world_tangents(mesh.tangents, draw.world))
+        lit = corners(np.concatenate(columns, axis=1))                  # (T', 3, 6), mapped (T', 3, 10)
         lights, lighting = scene_lighting(scene, material)
-    uv, (sampler, texels) = np.zeros((1, 3, 2)), NO_TEXTURE
-    if material.texture is not None:
+    uv, (sampler, texels), (map_sampler, map_texels) = np.zeros((1, 3, 2)), NO_TEXTURE, NO_TEXTURE
+    if material.texture is not None or map_name is not None:
         uv = corners(mesh.uvs)                                         # (T', 3, 2), float64 as given
+    if material.texture is not None:
         sampler, texels = texture_tables(texture.prepare(scene.textures[material.texture]), False)
+    if map_name is not None:
+        map_sampler, map_texels = texture_tables(texture.prepare(scene.textures[map_name]), False)
+    mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if map_name is not None else NO_MAP
     cutoff = material.alpha_cutoff
     c = np.ascontiguousarray
     _DRAW(c(tris.window), c(tris.inv_w), c(tris.edge_a), c(tris.edge_b), c(tris.edge_x0), c(tris.edge_y0),
           c(tris.edge_inclusive), c(tris.bbox), c(inputs.offsets, np.float64), float(inputs.unit),
           c(inputs.positions, np.float64), shading, c(colors), c(lit), c(lights), tuple(lighting),
-          material.texture is not None, c(uv), sampler, texels.bytes, texels.levels, color, depth,
+          material.texture is not None, c(uv), sampler, texels.bytes, texels.levels, mapped, map_sampler,
+          map_texels.bytes, map_texels.levels, float(material.bump_scale), color, depth,
           ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
           cutoff is not None, float(cutoff or 0.0), BAND_ROWS, numba.get_num_threads())
 
@@ -492,6 +510,39 @@ def _make_texels(sources: str):
     return _texels
 
 
+def _make_map_texels(sources: str):
+    """The kernel `_map_texels`, with the cache key ``sources`` as a closure
+    variable (`softras.kernels.stamp.sources_stamp`)."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _map_texels(k, out_x, out_y, weights, corners, u, v, bump, bump_scale, sampler, texels, table, out):
+        """The tangent-space normals of `softras.pipeline.render.mapped_normals`
+        (exact) of a mapped triangle's k fragments of one band (arguments as
+        `_texels`; the map's sampler, texels and table) into out (3, >= k):
+        `_texel` of the map at the fragment's (s, t) with its analytic
+        derivatives, and `softras.pipeline.fragment.normal_map_normals` of it,
+        or with ``bump`` `softras.pipeline.fragment.bump_normals`: the red
+        channel at (s +- 1/W, t) and (s, t +- 1/H) (W x H the map's level 0)
+        with the same derivatives, then ``(-scale dh_s / 2, -scale dh_t / 2, 1)``."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        step_s, step_t = 1.0 / table[0, 1], 1.0 / table[0, 2]
+        for f in range(k):
+            w = (weights[0, f], weights[1, f], weights[2, f])
+            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, out_x[f] + 0.5, out_y[f] + 0.5)
+            s, t = _mix(w, u), _mix(w, v)
+            if not bump:
+                r, g, b, _ = _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
+                out[0, f], out[1, f], out[2, f] = 2.0 * r - 1.0, 2.0 * g - 1.0, 2.0 * b - 1.0
+                continue
+            dh_s = (_texel(sampler, texels, table, s + step_s, t, dsdx, dtdx, dsdy, dtdy)[0]
+                    - _texel(sampler, texels, table, s + -step_s, t, dsdx, dtdx, dsdy, dtdy)[0])
+            dh_t = (_texel(sampler, texels, table, s, t + step_t, dsdx, dtdx, dsdy, dtdy)[0]
+                    - _texel(sampler, texels, table, s, t + -step_t, dsdx, dtdx, dsdy, dtdy)[0])
+            out[0, f], out[1, f], out[2, f] = -bump_scale * dh_s * 0.5, -bump_scale * dh_t * 0.5, 1.0
+
+    return _map_texels
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _shade(shade, f, r, g, b, a, textured):
     """`softras.pipeline.fragment.shade_unlit` of fragment f's straight colour
@@ -511,8 +562,9 @@ def _make_draw(sources: str):
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def _draw(window, inv_w, edge_a, edge_b, edge_x0, edge_y0, inclusive, bbox, offsets, unit, positions, shading,
-              colors, lit, lights, lighting, textured, uv, sampler, texels, table, color, depth, depth_func,
-              depth_write, blend, alpha_test, cutoff, band_rows, n_threads):
+              colors, lit, lights, lighting, textured, uv, sampler, texels, table, mapped, map_sampler, map_texels,
+              map_table, bump_scale, color, depth, depth_func, depth_write, blend, alpha_test, cutoff, band_rows,
+              n_threads):
         """One `compiled` triangle draw into the float64 buffers color (H, W,
         S, 4) and depth (H, W, S), in bands of ``band_rows`` rows in parallel.
 
@@ -527,7 +579,9 @@ def _make_draw(sources: str):
         lighting: `softras.kernels.light.scene_lighting`; whether textured,
         uv (T', 3, 2) the corners' (s, t), and the texture's sampler, texels
         and level table (`softras.kernels.texture.texture_tables`, `_texel`);
-        the depth function,
+        the normal or bump map (`mapped`: NO_MAP, NORMAL_MAP or BUMP_MAP, with
+        lit (T', 3, 10): the corner world tangents after the normals), its
+        sampler, texels and table, and the bump scale (`_map_texels`); the depth function,
         depth write, blend code, and whether the alpha test with ``cutoff``
         applies.  Fragments outside the triangle's box are never made; each
         covered pixel is shaded once (at its centre) and applied per covered
@@ -546,6 +600,7 @@ def _make_draw(sources: str):
             box = np.empty(4, np.int64)
             weights = np.empty((3, band_rows * width))          # the fragments' perspective weights,
             shade = np.empty((4, band_rows * width))             # texels, then colours
+            tangent_normals = np.empty((3, band_rows * width))   # a normal or bump map's
             for band in range(thread, n_bands, n_threads):
                 top = band * band_rows
                 bottom = min(top + band_rows, height) - 1
@@ -565,11 +620,14 @@ def _make_draw(sources: str):
                     dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
                     cc = _corner_colors(colors, t)
                     position = normal = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+                    tangent = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
                     if shading == PHONG:
                         position = (_triple(lit, t, 0), _triple(lit, t, 1), _triple(lit, t, 2))
                         normal = (_triple(lit, t, 3), _triple(lit, t, 4), _triple(lit, t, 5))
+                    if mapped != NO_MAP:
+                        tangent = (_triple(lit, t, 6), _triple(lit, t, 7), _triple(lit, t, 8), _triple(lit, t, 9))
                     u = v = (0.0, 0.0, 0.0)
-                    if textured:
+                    if textured or mapped != NO_MAP:
                         u, v = _triple(uv, t, 0), _triple(uv, t, 1)
                     # The perspective weights of all k fragments first: a loop LLVM vectorises.
                     if shading != FLAT or textured:
@@ -578,6 +636,9 @@ def _make_draw(sources: str):
                             weights[0, f], weights[1, f], weights[2, f] = w[0], w[1], w[2]
                     if textured:
                         _TEXELS(k, out_x, out_y, weights, corners, u, v, sampler, texels, table, shade)
+                    if mapped != NO_MAP:
+                        _MAP_TEXELS(k, out_x, out_y, weights, corners, u, v, mapped == BUMP_MAP, bump_scale,
+                                    map_sampler, map_texels, map_table, tangent_normals)
                     # The fragments' colours, then their writes: two loops, the first free
                     # of the writes' tests and stores (SIMD; in one loop, colours and writes
                     # took 16 of the 8 blended layers' 30 ms); a draw that writes every
@@ -587,6 +648,11 @@ def _make_draw(sources: str):
                         for f in range(k):
                             w = (weights[0, f], weights[1, f], weights[2, f])
                             nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
+                            if mapped != NO_MAP:
+                                nx, ny, nz = _perturb(nx, ny, nz, _mix(w, tangent[0]), _mix(w, tangent[1]),
+                                                      _mix(w, tangent[2]), _mix(w, tangent[3]),
+                                                      tangent_normals[0, f], tangent_normals[1, f],
+                                                      tangent_normals[2, f])
                             r, g, b = _lit_point(_mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, position[0]),
                                                  _mix(w, position[1]), _mix(w, position[2]), nx, ny, nz, lights,
                                                  lighting)
@@ -625,5 +691,6 @@ def _make_draw(sources: str):
 # The kernels, keyed on the kernels' sources and the stages' they call.
 _SOURCES = sources_stamp(rasterize, ops, texture, libm)
 _TEXELS = _make_texels(_SOURCES)
+_MAP_TEXELS = _make_map_texels(_SOURCES)
 _scratch = _Scratch()
 _DRAW = _make_draw(_SOURCES)
