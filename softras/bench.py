@@ -188,12 +188,13 @@ def blended_scene(side: int, layers: int = 8, cols: int = 8) -> dict:
 
 
 def lit_scene(side: int, shading: str, segments: int, rings: int, *, samples: int = 1,
-              textured: bool = False, bumpy: bool = True) -> dict:
+              textured: bool = False, bumpy: bool = True, bump_map: bool = False) -> dict:
     """A stand-in for a real model: a sphere of 2 * segments * (rings - 1)
     triangles, lumpy like a scan (displaced along its normals by a noise
     height map) unless ``bumpy`` is False, Blinn-Phong lit with ``shading``
     by a point and a directional light, optionally checker-textured
-    (trilinear), at ``samples`` samples a pixel."""
+    (trilinear) and bump-mapped (a trilinear noise height map, four taps a
+    pixel), at ``samples`` samples a pixel."""
     material = {"shading": shading, "color": [0.85, 0.6, 0.4, 1], "ambient": 0.12, "diffuse": 0.8,
                 "specular": 0.5, "shininess": 32}
     textures = {}
@@ -204,6 +205,10 @@ def lit_scene(side: int, shading: str, segments: int, rings: int, *, samples: in
         textures["checker"] = {"procedural": "checker", "size": [256, 256], "squares": 16,
                                "min_filter": "linear_mipmap_linear", "mag_filter": "linear"}
         material["texture"] = "checker"
+    if bump_map:
+        textures["bumps"] = {"procedural": "noise", "size": [128, 128], "min_filter": "linear_mipmap_linear",
+                             "mag_filter": "linear"}
+        material.update(bump_map="bumps", bump_scale=6)
     return {"softras_scene": 1, "width": side, "height": side, "background": [0.05, 0.05, 0.08, 1],
             "samples": samples, "textures": textures,
             "camera": {"projection": "perspective", "fov_y": 40, "near": 0.5, "far": 20,
@@ -258,6 +263,8 @@ def scenes(full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2
         BenchScene("gouraud_msaa4_24k_512", lit_scene(512, "gouraud", 128, 95, samples=4), levels=False),
         BenchScene("flat_6k_512", lit_scene(512, "flat", 64, 48, bumpy=False), levels=False),
         BenchScene("textured_phong_8k_1024", lit_scene(1024, "phong", 96, 48, textured=True, bumpy=False),
+                   levels=False),
+        BenchScene("bump_mapped_8k_512", lit_scene(512, "phong", 96, 48, textured=True, bumpy=False, bump_map=True),
                    levels=False),
         BenchScene("lines_8k_512", lines_scene(512), levels=False),
     ]
