@@ -55,9 +55,9 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     # gets the same bytes from their fused kernel (tests/test_fastpath.py).
     # A new option must either send scenes that use it past this test or be
     # implemented there.
-    fast = (fast_path and job.rgba8 and texture_filter is None
-            and texture_bounds is None and tie_rule == "left_bottom"
-            and kernels.unsupported(scene, precision=precision, clipping=clipping) is None)
+    fast = (fast_path and job.rgba8 and texture_bounds is None and tie_rule == "left_bottom"
+            and kernels.unsupported(scene, precision=precision, clipping=clipping,
+                                    texture_filter=texture_filter) is None)
     if fast:
         # Unless the kernels are ready (or compiled now), a background process
         # compiles them and the stages draw this scene (`softras.kernels.prepare`).
@@ -70,7 +70,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     if not fast:
         return stages.resolve(job, stages.render_samples(scene, job))
     stored = kernels.render_samples(scene, job.positions, texture_fixed_point=texture_fixed_point,
-                                    reuse=True)             # (the resolve copies it)
+                                    reuse=True, texture_filter=texture_filter)     # (the resolve copies it)
     return stages.resolve_bytes(job, stored)
 
 

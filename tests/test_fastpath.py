@@ -473,6 +473,32 @@ def test_random_textured_scenes_are_bit_identical(seed, fixed_point):
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("samples", [1, 4])
+def test_random_ripmap_scenes_are_bit_identical(seed, samples):
+    """The ripmap filter (``texture_filter="ripmap"``, `k_texture._ripmap_lane`)
+    on the compiled path gives the stages' bytes
+    (`softras.pipeline.texture_beyond.sample_ripmap`): every min filter
+    (mipmap_nearest: the nearest level; the others: four levels blended),
+    both mag filters, every wrap, odd sizes, uv up to +-60 (minified along
+    one axis, magnified along the other); even seeds name the textures one
+    by one, some left to their own filter."""
+    data = random_scene(300 + seed, textured=True)
+    for k, node in enumerate(data["nodes"]):
+        node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
+    scene = softras.load_scene(data)
+    option = "ripmap" if seed % 2 else {name: ["ripmap", None][k % 2] for k, name in enumerate(sorted(scene.textures))}
+    assert fastpath.unsupported(scene, precision="gl", clipping=None, texture_filter=option) is None
+    assert_same(*both_paths(scene, samples=samples, texture_filter=option),
+                f"random ripmap scene seed {300 + seed}, {samples} samples")
+
+
+def test_ewa_and_level0_take_the_stages():
+    scene = softras.load_scene(random_scene(300, textured=True))
+    for name in ("ewa", "level0"):
+        assert "texture_filter" in fastpath.unsupported(scene, precision="gl", clipping=None, texture_filter=name)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("samples", [1, 4])
 def test_random_lane_filtered_scenes_are_bit_identical(seed, samples):
     """The vectorised filter path (`k_texture._lanes_bilinear_fixed`) with both of
     llvmpipe's fixed-point wraps (mirrored_repeat filters in float: the scalar path)."""

@@ -86,10 +86,10 @@ from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
-                                     _lanes_bilinear_fixed, _lanes_lod, _map_normals, _quad_levels, _sample_lane,
-                                     texture_tables)
+                                     _lanes_bilinear_fixed, _lanes_lod, _map_normals, _quad_levels,
+                                     _ripmap_lane, _sample_lane, ripmap_tables, texture_tables)
 from softras.pipeline import clip as clip_stage
-from softras.pipeline import libm, ops, rasterize, sampling, setup, texture, vertex
+from softras.pipeline import libm, ops, rasterize, sampling, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import check_sample_memory
 from softras.pipeline.texture import WRAP_CODES
@@ -122,17 +122,21 @@ NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
 # ----------------------------------------------------------------------------- dispatch
 
 
-def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | None:
+def unsupported(scene: Scene, *, precision: str, clipping: str | None, texture_filter=None) -> str | None:
     """Why ``scene`` must take the general pipeline, or None when this path renders it.
 
     The caller (`softras.renderer.render_scene`) has already checked the
-    options this path does not look at (RGBA8 framebuffer, texture filter
-    and bounds, tie rule).
+    options this path does not look at (RGBA8 framebuffer, texture bounds,
+    tie rule).  Of the ``texture_filter``s (`softras.pipeline.texture_beyond`)
+    this path draws "ripmap" (`softras.kernels.texture._ripmap_lane`).
     """
     if precision != "gl":
         return "precision is not gl"
     if clipping not in (None, "llvmpipe"):
         return f"clipping {clipping!r}"
+    for name in scene.textures:
+        if texture_beyond.filter_for(texture_filter, name) not in (None, "ripmap"):
+            return f"texture {name!r}: texture_filter {texture_beyond.filter_for(texture_filter, name)!r}"
     for draw in scene.draws:
         material = draw.material
         if draw.mesh.primitive == "lines":
@@ -156,7 +160,7 @@ def textured(material) -> bool:
 
 
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
-                   reuse: bool = False) -> np.ndarray:
+                   reuse: bool = False, texture_filter=None) -> np.ndarray:
     """`softras.pipeline.render.render_samples` of a scene that `unsupported`
     accepts, at any sample positions (S, 2) in [0, 1): in the stages' passes
     of at most `softras.pipeline.sampling.MAX_PASS_SAMPLES` (coverage masks
@@ -166,18 +170,21 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     byte k where the general pipeline stores the float k/255.  reuse: the
     buffer is this thread's scratch colour buffer, overwritten by the next
     call (for a caller that copies it at once; saves the page faults of a
-    fresh buffer; one pass only).
+    fresh buffer; one pass only).  texture_filter: None, or "ripmap" for
+    some or all textures (`unsupported`).
     """
     check_sample_memory(scene, len(positions), SAMPLE_BYTES)
 
     def render_pass(pass_positions):
         # (A pass of several is copied at once: it may take the scratch buffer.)
-        return _render_pass(scene, pass_positions, texture_fixed_point, reuse or len(pass_positions) < len(positions))
+        return _render_pass(scene, pass_positions, texture_fixed_point, reuse or len(pass_positions) < len(positions),
+                            texture_filter)
 
     return sampling.in_passes(positions, render_pass)
 
 
-def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool, reuse: bool) -> np.ndarray:
+def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool, reuse: bool,
+                 texture_filter=None) -> np.ndarray:
     """`render_samples` of one pass's positions (S, 2): the
     draws into this pass's byte framebuffer, (H, W, S, 4) uint8 colour."""
     offsets, _ = setup.sample_offsets(positions, "gl")
@@ -192,11 +199,11 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
         if draw.mesh.primitive == "lines":
             draw_lines(scene, draw, fb, positions)
         else:
-            draw_triangles(scene, draw, fb, offsets, positions, texture_fixed_point)
+            draw_triangles(scene, draw, fb, offsets, positions, texture_fixed_point, texture_filter)
     return color
 
 
-def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_point) -> None:
+def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_point, texture_filter=None) -> None:
     """One triangle draw into the byte framebuffer fb (`softras.kernels.ops.Framebuffer`):
     `softras.pipeline.render.draw_triangles` in gl precision (see the module
     docstring)."""
@@ -232,7 +239,9 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
         tris.colors[visible] = flat_corner_colors(scene, draw, base, clipped.source[visible])
     sampler, texels = NO_TEXTURE
     if material.texture is not None:
-        sampler, texels = texture_tables(texture.prepare(scene.textures[material.texture]), texture_fixed_point)
+        tex = texture.prepare(scene.textures[material.texture])
+        sampler, texels = (ripmap_tables(tex) if texture_beyond.filter_for(texture_filter, tex.name) == "ripmap"
+                           else texture_tables(tex, texture_fixed_point))
     map_sampler, map_texels = NO_TEXTURE
     if map_name is not None:
         map_sampler, map_texels = texture_tables(texture.prepare(scene.textures[map_name]), texture_fixed_point)
@@ -478,7 +487,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             # The level of detail of every quad (before the depth test), kept on the
             # quad's first lane; whether a quad samples two levels.
             any_two = False
-            if not state.texture:
+            if not state.texture or sampler.ripmap:       # (a ripmap chooses its levels per lane)
                 pass
             elif sampler.aniso:                           # (one level each, never vectorised)
                 _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
@@ -497,7 +506,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                     li[_LI_PASS, l] = p
                     quad_passed |= p
                 block_passed |= quad_passed
-                if state.texture:                 # the quad's levels on its lanes: what each filter reads
+                if state.texture and not sampler.ripmap:  # the quad's levels on its lanes: what each filter reads
                     block_two |= _quad_levels(q, quad_passed != 0, sampler, table, vectorised, any_two, lf, li)
             if block_passed == 0:
                 continue
@@ -509,6 +518,10 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                     _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
                 else:
                     _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, sampler)
+            elif sampler.ripmap:
+                for l in range(n):
+                    if li[_LI_PASS, l]:
+                        _ripmap_lane(l, lf, sampler, texels, table)
             else:
                 for l in range(n):
                     if li[_LI_PASS, l]:

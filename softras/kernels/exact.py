@@ -59,10 +59,9 @@ from softras.kernels.ops import _uses_depth
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
-from softras.kernels.texture import NO_TEXTURE, _bilinear_float, _linear_float, _nan_max, texture_tables
+from softras.kernels.texture import NO_TEXTURE, _filter_level, _nan_max, texture_tables
 from softras.pipeline import libm, ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle, _sample_box
-from softras.pipeline.texture import wrap_index
 from softras.scene import Scene
 
 # Rows of the picture a thread draws at once.
@@ -426,33 +425,6 @@ def _levels(rho2, last, mip):
     # same, and `_texel` does not blend: the stages' frac of 0 there is not needed.)
     level = np.int64(ipart)
     return magnified, min(max(level, 0), last), min(max(level + 1, 0), last), frac
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _filter_level(texels, base, lw, lh, s, t, linear, wrap_s, wrap_t):
-    """`softras.pipeline.texture.filter_level` in exact precision on the
-    level of lw x lh texels from byte ``base`` of ``texels`` (the mip
-    chain's bytes, RGBA8 premultiplied): nearest (``floor(s W)``, wrapped)
-    or the float bilinear filter.  Returns the four channels on the 0..255
-    scale, float64."""
-    if not linear:
-        i = wrap_index(np.int64(np.floor(s * lw)), lw, wrap_s)
-        j = wrap_index(np.int64(np.floor(t * lh)), lh, wrap_t)
-        at = base + (j * lw + i) * 4
-        return (np.float64(texels[at]), np.float64(texels[at + 1]), np.float64(texels[at + 2]),
-                np.float64(texels[at + 3]))
-    i0, i1, a = _linear_float(s, lw, wrap_s)
-    j0, j1, b = _linear_float(t, lh, wrap_t)
-    at00, at10 = base + (j0 * lw + i0) * 4, base + (j0 * lw + i1) * 4
-    at01, at11 = base + (j1 * lw + i0) * 4, base + (j1 * lw + i1) * 4
-    return (_bilinear_float(a, b, np.float64(texels[at00]), np.float64(texels[at10]), np.float64(texels[at01]),
-                            np.float64(texels[at11])),
-            _bilinear_float(a, b, np.float64(texels[at00 + 1]), np.float64(texels[at10 + 1]),
-                            np.float64(texels[at01 + 1]), np.float64(texels[at11 + 1])),
-            _bilinear_float(a, b, np.float64(texels[at00 + 2]), np.float64(texels[at10 + 2]),
-                            np.float64(texels[at01 + 2]), np.float64(texels[at11 + 2])),
-            _bilinear_float(a, b, np.float64(texels[at00 + 3]), np.float64(texels[at10 + 3]),
-                            np.float64(texels[at01 + 3]), np.float64(texels[at11 + 3])))
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

@@ -28,6 +28,7 @@ from softras.kernels.lanes import (_LF_FRAC, _LF_MAP, _LF_S, _LF_SCALE, _LF_ST0,
                                    _LI_W8, _LI_WORD)
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _lane, _spread, _unspread
 from softras.kernels.stamp import sources_stamp
+from softras.pipeline import libm, texture_beyond
 from softras.pipeline import texture as texture_stage
 from softras.pipeline.texture import WRAP_CODES, wrap_index
 from softras.scene.texels import levels_buffer
@@ -41,10 +42,12 @@ MIN_FILTERS = ("nearest", "linear") + texture_stage.MIPMAP_FILTERS
 # mip mode (0 none, 1 nearest, 2 linear), the wraps of s and t (WRAP_CODES),
 # fixed8 (1: llvmpipe's 8.8 fixed-point weights,
 # `softras.pipeline.texture.uses_fixed_point`), the number of levels used,
-# whether the vectorised filter applies (`_lanes_bilinear_fixed`), and
-# whether the sampler is llvmpipe's anisotropic one (`_aniso_lane`).
+# whether the vectorised filter applies (`_lanes_bilinear_fixed`),
+# whether the sampler is llvmpipe's anisotropic one (`_aniso_lane`), and for
+# the ripmap filter (`ripmap_tables`) the ripmap's levels along u (0: not a
+# ripmap).
 Sampler = namedtuple("Sampler", ["min_filter", "mag_filter", "mip", "wrap_s", "wrap_t", "fixed8", "levels",
-                                 "vectorised", "aniso"])
+                                 "vectorised", "aniso", "ripmap"])
 
 # A prepared texture's texels as the kernels read them (`texture_tables`): the
 # used mip levels as one flat buffer of bytes (N,) uint8, the same buffer as
@@ -58,7 +61,7 @@ Texels = namedtuple("Texels", ["bytes", "words", "levels", "ewa"])
 _EWA = texture_stage.llvmpipe_ewa_table()
 
 # What an untextured draw passes (the same types: one compiled kernel).
-NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0, 0),
+NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0, 0, 0),
               Texels(np.zeros(4, np.uint8), np.zeros(1, np.uint32), np.zeros((1, 3), np.int64), _EWA))
 
 
@@ -101,8 +104,39 @@ def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
                           for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))))
     aniso = texture_stage.effective_anisotropy(tex.max_anisotropy, True) > 1    # (then never fixed8)
     sampler = Sampler(min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t], int(fixed8),
-                      len(levels), int(vectorised), int(aniso))
+                      len(levels), int(vectorised), int(aniso), 0)
     return sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
+
+
+def ripmap_tables(tex: texture_stage.MipTexture):
+    """A texture under the ``texture_filter`` "ripmap" as the kernels read it
+    (`_ripmap_lane`), (`Sampler`, `Texels`): the levels of
+    `softras.pipeline.texture_beyond.ripmap` (rip[j][i], i halvings along u,
+    j along v) as one flat buffer, level (i, j) at row j n_u + i of the
+    level table; the sampler's ``ripmap`` is n_u, ``levels`` n_u n_v, ``mip``
+    1 for a mipmap_nearest min filter (the nearest level) and 2 otherwise.
+    Cached per prepared texture."""
+    key = (id(tex), "ripmap")
+    hit = _tables_cache.get(key)
+    if hit is not None and hit[0] is tex:
+        return hit[1]
+    rip = texture_beyond.ripmap(tex)
+    levels = [level for row in rip for level in row]
+    table = np.zeros((len(levels), 3), np.int64)
+    at = 0
+    for k, level in enumerate(levels):
+        h, w = level.shape[:2]
+        table[k] = (at, w, h)
+        at += h * w * 4
+    flat = np.concatenate([np.ascontiguousarray(level, np.uint8).reshape(-1) for level in levels])
+    sampler = Sampler(FILTER_CODES["linear"], FILTER_CODES[tex.mag_filter],
+                      1 if tex.min_filter.endswith("mipmap_nearest") else 2, WRAP_CODES[tex.wrap_s],
+                      WRAP_CODES[tex.wrap_t], 0, len(levels), 0, 0, len(rip[0]))
+    tables = sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
+    if len(_tables_cache) >= 16:
+        _tables_cache.clear()
+    _tables_cache[key] = (tex, tables)
+    return tables
 
 
 # ----------------------------------------------------------------------------- addresses and filters
@@ -160,6 +194,34 @@ def _wrap_select(i, size, mode):
     m = i & (2 * size - 1)
     mirrored = m if m < size else 2 * size - 1 - m
     return clamped if mode == 1 else (repeat if mode == 0 else mirrored)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _filter_level(texels, base, lw, lh, s, t, linear, wrap_s, wrap_t):
+    """`softras.pipeline.texture.filter_level` in float64 (exact precision,
+    and the ripmap's levels in any, `_ripmap_lane`) on the level of lw x lh
+    texels from byte ``base`` of ``texels`` (the mip chain's bytes, RGBA8
+    premultiplied): nearest (``floor(s W)``, wrapped) or the float bilinear
+    filter.  Returns the four channels on the 0..255
+    scale, float64."""
+    if not linear:
+        i = wrap_index(np.int64(np.floor(s * lw)), lw, wrap_s)
+        j = wrap_index(np.int64(np.floor(t * lh)), lh, wrap_t)
+        at = base + (j * lw + i) * 4
+        return (np.float64(texels[at]), np.float64(texels[at + 1]), np.float64(texels[at + 2]),
+                np.float64(texels[at + 3]))
+    i0, i1, a = _linear_float(s, lw, wrap_s)
+    j0, j1, b = _linear_float(t, lh, wrap_t)
+    at00, at10 = base + (j0 * lw + i0) * 4, base + (j0 * lw + i1) * 4
+    at01, at11 = base + (j1 * lw + i0) * 4, base + (j1 * lw + i1) * 4
+    return (_bilinear_float(a, b, np.float64(texels[at00]), np.float64(texels[at10]), np.float64(texels[at01]),
+                            np.float64(texels[at11])),
+            _bilinear_float(a, b, np.float64(texels[at00 + 1]), np.float64(texels[at10 + 1]),
+                            np.float64(texels[at01 + 1]), np.float64(texels[at11 + 1])),
+            _bilinear_float(a, b, np.float64(texels[at00 + 2]), np.float64(texels[at10 + 2]),
+                            np.float64(texels[at01 + 2]), np.float64(texels[at11 + 2])),
+            _bilinear_float(a, b, np.float64(texels[at00 + 3]), np.float64(texels[at10 + 3]),
+                            np.float64(texels[at01 + 3]), np.float64(texels[at11 + 3])))
 
 
 # k / 255 for every byte k (the same doubles as the division).
@@ -357,6 +419,75 @@ def _aniso_lane(l, lf, li, sampler, texels, table, ewa):
     lf[_LF_TEX + 2, l] = np.float64(b)
     lf[_LF_TEX + 3, l] = np.float64(a)
     return True
+
+
+# ----------------------------------------------------------------------------- the ripmap filter
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _ripmap_level(lam, n):
+    """`softras.pipeline.texture_beyond.sample_ripmap`'s lambda along one
+    axis after ``np.nan_to_num(np.maximum(lam, 0.0), posinf=n - 1)``."""
+    if lam != lam:
+        return 0.0
+    return float(n - 1) if lam == np.inf else max(lam, 0.0)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _ripmap_lane(l, lf, sampler, texels, table):
+    """`softras.pipeline.texture_beyond.sample_ripmap` of lane l (float64
+    whatever the precision; its quad's derivatives as `_lanes_lod` takes
+    them, quad differences in float32, then in texels of level 0 in
+    float64 as `softras.pipeline.texture.texel_derivatives` without gl),
+    the ripmap in `ripmap_tables`' layout, into the _LF_TEX rows: the
+    lambdas along u and v (`softras.pipeline.libm._log2` of the footprint's
+    extents), magnified (both <= 0): the mag filter on level 0; else the
+    nearest level (mipmap_nearest) or the four levels around the lambdas,
+    each bilinear (`_filter_level`), weighted and summed in the stage's
+    order."""
+    q = l & -4
+    s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
+    w0, h0 = table[0, 1], table[0, 2]
+    du0 = np.float64(np.float32(lf[_LF_S, q + 1]) - s_tl) * w0
+    du1 = np.float64(np.float32(lf[_LF_T, q + 1]) - t_tl) * h0
+    dv0 = np.float64(np.float32(lf[_LF_S, q + 2]) - s_tl) * w0
+    dv1 = np.float64(np.float32(lf[_LF_T, q + 2]) - t_tl) * h0
+    lam_u = libm._log2(_nan_max(np.abs(du0), np.abs(dv0)))
+    lam_v = libm._log2(_nan_max(np.abs(du1), np.abs(dv1)))
+    s, t = lf[_LF_S, l], lf[_LF_T, l]
+    wrap_s, wrap_t = sampler.wrap_s, sampler.wrap_t
+    if not ((lam_u > 0) | (lam_v > 0)):                 # magnified
+        r, g, b, a = _filter_level(texels, 0, w0, h0, s, t, sampler.mag_filter == _LINEAR, wrap_s, wrap_t)
+    else:
+        n_u = sampler.ripmap
+        n_v = sampler.levels // n_u
+        lu, lv = _ripmap_level(lam_u, n_u), _ripmap_level(lam_v, n_v)
+        if sampler.mip == 1:                            # the nearest level along each axis
+            i0 = i1 = np.int64(min(max(np.ceil(lu - 0.5), 0.0), float(n_u - 1)))
+            j0 = j1 = np.int64(min(max(np.ceil(lv - 0.5), 0.0), float(n_v - 1)))
+            fu = fv = 0.0
+        else:
+            i0 = np.int64(min(max(np.floor(lu), 0.0), float(n_u - 1)))
+            j0 = np.int64(min(max(np.floor(lv), 0.0), float(n_v - 1)))
+            fu = lu - i0 if i0 < n_u - 1 else 0.0
+            fv = lv - j0 if j0 < n_v - 1 else 0.0
+            i1, j1 = min(i0 + 1, n_u - 1), min(j0 + 1, n_v - 1)
+        r = g = b = a = 0.0
+        for k in range(4):
+            i = i1 if k & 1 else i0
+            j = j1 if k & 2 else j0
+            weight = (fu if k & 1 else 1 - fu) * (fv if k & 2 else 1 - fv)
+            if sampler.mip == 1:
+                weight = 1.0 if k == 0 else 0.0
+            if weight > 0:
+                row = j * n_u + i
+                cr, cg, cb, ca = _filter_level(texels, table[row, 0], table[row, 1], table[row, 2], s, t, True,
+                                               wrap_s, wrap_t)
+                r, g, b, a = r + weight * cr, g + weight * cg, b + weight * cb, a + weight * ca
+    lf[_LF_TEX, l] = r / 255.0
+    lf[_LF_TEX + 1, l] = g / 255.0
+    lf[_LF_TEX + 2, l] = b / 255.0
+    lf[_LF_TEX + 3, l] = a / 255.0
 
 
 # ----------------------------------------------------------------------------- the lanes

@@ -46,7 +46,7 @@ import numba
 import numpy as np
 
 from softras.scene import texels
-from softras.pipeline import texture
+from softras.pipeline import libm, texture
 from softras.pipeline.cache_key import sources_key
 from softras.pipeline.texture import MipTexture
 
@@ -170,8 +170,7 @@ def ripmap_lods(du: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     u and along v in level-0 texels, from du = d(u,v)/dx, dv = d(u,v)/dy (N, 2)."""
     extent_u = np.maximum(np.abs(du[:, 0]), np.abs(dv[:, 0]))
     extent_v = np.maximum(np.abs(du[:, 1]), np.abs(dv[:, 1]))
-    with np.errstate(divide="ignore"):
-        return np.log2(extent_u), np.log2(extent_v)
+    return libm.log2(extent_u), libm.log2(extent_v)     # (C's log2: the compiled ripmap's, bit for bit)
 
 
 def sample_ripmap(tex: MipTexture, st: np.ndarray, ddx: np.ndarray,
