@@ -74,7 +74,7 @@ def test_random_lit_scenes_give_the_stages_samples(shading, seed, samples):
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("samples", [1, 4])
 def test_random_mapped_scenes_give_the_stages_samples(seed, samples):
-    """Normal- and bump-mapped Phong draws (`exact._map_texels`: the map at
+    """Normal- and bump-mapped Phong draws (`exact._make_map_texels`: the map at
     the analytic derivatives, four taps for a bump map), textured (odd
     seeds) or not; the anisotropic map's draws take the stages between the
     kernel's."""

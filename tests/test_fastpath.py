@@ -284,7 +284,7 @@ def mapped_scene(seed: int) -> dict:
 @pytest.mark.parametrize("samples", [1, 4])
 def test_random_mapped_scenes_are_bit_identical(seed, samples):
     """Normal- and bump-mapped Phong draws on the compiled path
-    (`k_texture._map_normals`, `k_light._perturb`: the map sampled at each
+    (`softras.kernels.maps._map_normals`, `k_light._perturb`: the map sampled at each
     quad's level of detail, the normal perturbed in the interpolated
     tangent frame) equal the stages byte for byte, with and without a
     colour texture, every map filter, clipped triangles included."""
@@ -474,7 +474,7 @@ def test_random_textured_scenes_are_bit_identical(seed, fixed_point):
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("samples", [1, 4])
 def test_random_ripmap_scenes_are_bit_identical(seed, samples):
-    """The ripmap filter (``texture_filter="ripmap"``, `k_texture._ripmap_lane`)
+    """The ripmap filter (``texture_filter="ripmap"``, `softras.kernels.texture_beyond._ripmap_lane`)
     on the compiled path gives the stages' bytes
     (`softras.pipeline.texture_beyond.sample_ripmap`): every min filter
     (mipmap_nearest: the nearest level; the others: four levels blended),
@@ -641,7 +641,7 @@ def test_quad_lod_equals_choose_levels():
     for mip, min_filter in ((0, "linear"), (1, "linear_mipmap_nearest"), (2, "linear_mipmap_linear")):
         width, height, n_levels = 64, 16, 7
         sampler = k_texture.Sampler(min_filter=1, mag_filter=0, mip=mip, wrap_s=0, wrap_t=0, fixed8=1,
-                                    levels=n_levels, vectorised=0, aniso=0)
+                                    levels=n_levels, vectorised=0, aniso=0, ripmap=0)
         with np.errstate(all="ignore"):
             du = d[:, :2] * np.float32([width, height])
             dv = d[:, 2:] * np.float32([width, height])

@@ -41,7 +41,7 @@ into the same byte framebuffer).
 or textured lines, other precisions or clipping policies...).  Every
 shading model is drawn here, at any sample count and positions, with every
 texture filter GL has (anisotropic included), normal and bump maps (on the
-textured driver, `softras.kernels.texture._map_normals`) and the alpha test.
+textured driver, `softras.kernels.maps._map_normals`) and the alpha test.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
 `face_colors`): Gouraud per vertex
@@ -74,9 +74,8 @@ import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
 from softras.kernels.interpolate import _lane_alpha_test, _lane_depths, _lane_weights, _lane_words, plain_colors
-from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_FRAC, _LF_SCALE, _LF_W, _LI_BASE, _LI_COV, _LI_IMGF,
-                                   _LI_LEVEL, _LI_LH, _LI_LW, _LI_PASS, _LI_PX, _LI_PY, _LI_TWO, _LI_W8, _LI_Z,
-                                   _NLF, LANES, LaneBuffers)
+from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES,
+                                   LaneBuffers)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _uses_depth, _write_lanes, clear
@@ -85,9 +84,11 @@ from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _ed
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.stamp import sources_stamp
+from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
-                                     _lanes_bilinear_fixed, _lanes_lod, _map_normals, _quad_levels,
-                                     _ripmap_lane, _sample_lane, ripmap_tables, texture_tables)
+                                     _lanes_bilinear_fixed, _lanes_lod, _quad_levels, _sample_lane,
+                                     texture_tables)
+from softras.kernels.texture_beyond import _ripmap_lane, ripmap_tables
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import libm, ops, rasterize, sampling, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _sample_box
@@ -113,7 +114,7 @@ Samples = namedtuple("Samples", ["offsets", "positions"])
 # `softras.kernels.light._phong_words`), and the alpha test: whether the
 # material has one, and its cutoff (`softras.kernels.interpolate._lane_alpha_test`),
 # whether the colour is multiplied by a texture, and the normal map (MAP_CODES,
-# `softras.kernels.texture._map_normals`) and the bump map's scale.
+# `softras.kernels.maps._map_normals`) and the bump map's scale.
 DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat", "lit", "alpha_test",
                                      "cutoff", "texture", "mapped", "bump_scale"])
 NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
@@ -128,7 +129,7 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None, texture_f
     The caller (`softras.renderer.render_scene`) has already checked the
     options this path does not look at (RGBA8 framebuffer, texture bounds,
     tie rule).  Of the ``texture_filter``s (`softras.pipeline.texture_beyond`)
-    this path draws "ripmap" (`softras.kernels.texture._ripmap_lane`).
+    this path draws "ripmap" (`softras.kernels.texture_beyond._ripmap_lane`).
     """
     if precision != "gl":
         return "precision is not gl"

@@ -31,7 +31,7 @@ LANES = 64                                   # 16 quads of an 8x8 block
 # Phong's world position, unit normal and unit view vector (x, y, z each),
 # one light's N.L and specular term, a normal or bump map's tangent-space
 # normal (x, y, z), and the lane's own (s, t) while a bump map is sampled
-# beside it (`softras.kernels.texture._map_normals`).
+# beside it (`softras.kernels.maps._map_normals`).
 (_LF_CX, _LF_CY, _LF_W, _LF_S, _LF_T, _LF_SCALE, _LF_FRAC, _LF_TEX, _LF_LIT, _LF_POS, _LF_NRM, _LF_VIEW,
  _LF_NDL, _LF_SPEC, _LF_MAP, _LF_ST0, _NLF) = 0, 1, 2, 5, 6, 7, 11, 12, 16, 20, 23, 26, 29, 30, 31, 34, 36
 

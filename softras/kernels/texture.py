@@ -23,12 +23,9 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from softras.kernels.lanes import (_LF_FRAC, _LF_MAP, _LF_S, _LF_SCALE, _LF_ST0, _LF_T, _LF_TEX, _LI_ADDR,
-                                   _LI_BASE, _LI_COV, _LI_FRAC8, _LI_IMGF, _LI_LEVEL, _LI_LH, _LI_LW, _LI_TWO,
-                                   _LI_W8, _LI_WORD)
+from softras.kernels.lanes import (_LF_FRAC, _LF_S, _LF_SCALE, _LF_T, _LF_TEX, _LI_ADDR, _LI_BASE, _LI_FRAC8,
+                                   _LI_IMGF, _LI_LEVEL, _LI_LH, _LI_LW, _LI_TWO, _LI_W8, _LI_WORD)
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _lane, _spread, _unspread
-from softras.kernels.stamp import sources_stamp
-from softras.pipeline import libm, texture_beyond
 from softras.pipeline import texture as texture_stage
 from softras.pipeline.texture import WRAP_CODES, wrap_index
 from softras.scene.texels import levels_buffer
@@ -106,37 +103,6 @@ def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
     sampler = Sampler(min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t], int(fixed8),
                       len(levels), int(vectorised), int(aniso), 0)
     return sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
-
-
-def ripmap_tables(tex: texture_stage.MipTexture):
-    """A texture under the ``texture_filter`` "ripmap" as the kernels read it
-    (`_ripmap_lane`), (`Sampler`, `Texels`): the levels of
-    `softras.pipeline.texture_beyond.ripmap` (rip[j][i], i halvings along u,
-    j along v) as one flat buffer, level (i, j) at row j n_u + i of the
-    level table; the sampler's ``ripmap`` is n_u, ``levels`` n_u n_v, ``mip``
-    1 for a mipmap_nearest min filter (the nearest level) and 2 otherwise.
-    Cached per prepared texture."""
-    key = (id(tex), "ripmap")
-    hit = _tables_cache.get(key)
-    if hit is not None and hit[0] is tex:
-        return hit[1]
-    rip = texture_beyond.ripmap(tex)
-    levels = [level for row in rip for level in row]
-    table = np.zeros((len(levels), 3), np.int64)
-    at = 0
-    for k, level in enumerate(levels):
-        h, w = level.shape[:2]
-        table[k] = (at, w, h)
-        at += h * w * 4
-    flat = np.concatenate([np.ascontiguousarray(level, np.uint8).reshape(-1) for level in levels])
-    sampler = Sampler(FILTER_CODES["linear"], FILTER_CODES[tex.mag_filter],
-                      1 if tex.min_filter.endswith("mipmap_nearest") else 2, WRAP_CODES[tex.wrap_s],
-                      WRAP_CODES[tex.wrap_t], 0, len(levels), 0, 0, len(rip[0]))
-    tables = sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
-    if len(_tables_cache) >= 16:
-        _tables_cache.clear()
-    _tables_cache[key] = (tex, tables)
-    return tables
 
 
 # ----------------------------------------------------------------------------- addresses and filters
@@ -421,75 +387,6 @@ def _aniso_lane(l, lf, li, sampler, texels, table, ewa):
     return True
 
 
-# ----------------------------------------------------------------------------- the ripmap filter
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _ripmap_level(lam, n):
-    """`softras.pipeline.texture_beyond.sample_ripmap`'s lambda along one
-    axis after ``np.nan_to_num(np.maximum(lam, 0.0), posinf=n - 1)``."""
-    if lam != lam:
-        return 0.0
-    return float(n - 1) if lam == np.inf else max(lam, 0.0)
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _ripmap_lane(l, lf, sampler, texels, table):
-    """`softras.pipeline.texture_beyond.sample_ripmap` of lane l (float64
-    whatever the precision; its quad's derivatives as `_lanes_lod` takes
-    them, quad differences in float32, then in texels of level 0 in
-    float64 as `softras.pipeline.texture.texel_derivatives` without gl),
-    the ripmap in `ripmap_tables`' layout, into the _LF_TEX rows: the
-    lambdas along u and v (`softras.pipeline.libm._log2` of the footprint's
-    extents), magnified (both <= 0): the mag filter on level 0; else the
-    nearest level (mipmap_nearest) or the four levels around the lambdas,
-    each bilinear (`_filter_level`), weighted and summed in the stage's
-    order."""
-    q = l & -4
-    s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
-    w0, h0 = table[0, 1], table[0, 2]
-    du0 = np.float64(np.float32(lf[_LF_S, q + 1]) - s_tl) * w0
-    du1 = np.float64(np.float32(lf[_LF_T, q + 1]) - t_tl) * h0
-    dv0 = np.float64(np.float32(lf[_LF_S, q + 2]) - s_tl) * w0
-    dv1 = np.float64(np.float32(lf[_LF_T, q + 2]) - t_tl) * h0
-    lam_u = libm._log2(_nan_max(np.abs(du0), np.abs(dv0)))
-    lam_v = libm._log2(_nan_max(np.abs(du1), np.abs(dv1)))
-    s, t = lf[_LF_S, l], lf[_LF_T, l]
-    wrap_s, wrap_t = sampler.wrap_s, sampler.wrap_t
-    if not ((lam_u > 0) | (lam_v > 0)):                 # magnified
-        r, g, b, a = _filter_level(texels, 0, w0, h0, s, t, sampler.mag_filter == _LINEAR, wrap_s, wrap_t)
-    else:
-        n_u = sampler.ripmap
-        n_v = sampler.levels // n_u
-        lu, lv = _ripmap_level(lam_u, n_u), _ripmap_level(lam_v, n_v)
-        if sampler.mip == 1:                            # the nearest level along each axis
-            i0 = i1 = np.int64(min(max(np.ceil(lu - 0.5), 0.0), float(n_u - 1)))
-            j0 = j1 = np.int64(min(max(np.ceil(lv - 0.5), 0.0), float(n_v - 1)))
-            fu = fv = 0.0
-        else:
-            i0 = np.int64(min(max(np.floor(lu), 0.0), float(n_u - 1)))
-            j0 = np.int64(min(max(np.floor(lv), 0.0), float(n_v - 1)))
-            fu = lu - i0 if i0 < n_u - 1 else 0.0
-            fv = lv - j0 if j0 < n_v - 1 else 0.0
-            i1, j1 = min(i0 + 1, n_u - 1), min(j0 + 1, n_v - 1)
-        r = g = b = a = 0.0
-        for k in range(4):
-            i = i1 if k & 1 else i0
-            j = j1 if k & 2 else j0
-            weight = (fu if k & 1 else 1 - fu) * (fv if k & 2 else 1 - fv)
-            if sampler.mip == 1:
-                weight = 1.0 if k == 0 else 0.0
-            if weight > 0:
-                row = j * n_u + i
-                cr, cg, cb, ca = _filter_level(texels, table[row, 0], table[row, 1], table[row, 2], s, t, True,
-                                               wrap_s, wrap_t)
-                r, g, b, a = r + weight * cr, g + weight * cg, b + weight * cb, a + weight * ca
-    lf[_LF_TEX, l] = r / 255.0
-    lf[_LF_TEX + 1, l] = g / 255.0
-    lf[_LF_TEX + 2, l] = b / 255.0
-    lf[_LF_TEX + 3, l] = a / 255.0
-
-
 # ----------------------------------------------------------------------------- the lanes
 
 
@@ -641,86 +538,3 @@ def _quad_levels(q, on, sampler, table, vectorised, any_two, lf, li):
             li[_LI_TWO, l] = two
             lf[_LF_FRAC, l] = frac
     return two
-
-
-# ----------------------------------------------------------------------------- normal and bump maps
-
-
-def _make_map_normals(sources: str):
-    """The kernel `_map_normals`, cached under the key ``sources``
-    (`softras.kernels.stamp.sources_stamp`, a closure variable)."""
-
-    @numba.njit(cache=True, error_model="numpy")
-    def _map_normals(n, lf, li, lu, texel, sampler, texels, texels32, table, ewa, bump, bump_scale):
-        """The tangent-space normals of `softras.pipeline.render.mapped_normals`
-        at the n lanes (whole 2x2 quads of one triangle, (s, t) in the _LF_S and
-        _LF_T rows, coverage in _LI_COV) into the _LF_MAP rows (x, y, z), the map
-        (`Sampler` sampler; its `Texels` arrays one by one) sampled as
-        `softras.pipeline.texture.sample` samples a texture, at each quad's own
-        level of detail (`_lanes_lod`, `_lanes_aniso_levels`):
-
-        - a normal map (``bump`` False): `softras.pipeline.fragment.normal_map_normals`
-          of the texel, ``2 rgb - 1``;
-        - a bump map: `softras.pipeline.fragment.bump_normals` in gl precision:
-          the red channel at (s +- 1/W, t) and (s, t +- 1/H) (W x H its level 0;
-          the coordinates rounded to float32 and the offset added in float32),
-          all four at the quad's level of detail of (s, t) itself, then
-          ``(-scale dh_s / 2, -scale dh_t / 2, 1)``.
-
-        Every covered quad is sampled (the depth test comes later; a failed
-        lane's normal is never read).  The level rows are the map's afterwards:
-        the tile kernel chooses the colour texture's levels after this.  Not
-        inlined: one compiled copy serves every textured tile driver, and it is
-        cached on its own (18 s to compile)."""
-        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
-        vectorised = sampler.vectorised != 0
-        if sampler.aniso:
-            _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
-            any_two = False
-        else:
-            any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
-        block_two = False
-        for q in range(n >> 2):
-            l = 4 * q
-            covered = (li[_LI_COV, l] | li[_LI_COV, l + 1] | li[_LI_COV, l + 2] | li[_LI_COV, l + 3]) != 0
-            block_two |= _quad_levels(q, covered, sampler, table, vectorised, any_two, lf, li)
-        step_s, step_t = np.float32(1.0 / table[0, 1]), np.float32(1.0 / table[0, 2])
-        if bump:
-            for l in range(n):
-                lf[_LF_ST0, l], lf[_LF_ST0 + 1, l] = lf[_LF_S, l], lf[_LF_T, l]
-        for k in range(4 if bump else 1):
-            axis = k >> 1                                   # bump: s + step, s - step, t + step, t - step
-            sign = np.float32(1.0) if k & 1 == 0 else np.float32(-1.0)
-            if bump:
-                for l in range(n):
-                    s32, t32 = np.float32(lf[_LF_ST0, l]), np.float32(lf[_LF_ST0 + 1, l])
-                    if axis == 0:
-                        s32 = np.float32(s32 + np.float32(sign * step_s))
-                    else:
-                        t32 = np.float32(t32 + np.float32(sign * step_t))
-                    lf[_LF_S, l], lf[_LF_T, l] = np.float64(s32), np.float64(t32)
-            if vectorised:                                  # (one copy: the level count read at run time)
-                _lanes_bilinear_fixed(n, 2 if block_two else 1, False, lf, li, lu, texels32, sampler)
-            else:
-                for l in range(n):
-                    if li[_LI_COV, l]:
-                        _sample_lane(l, lf, li, texel, sampler, texels, texels32, table, ewa)
-            if bump:                                        # dh = h(+) - h(-), the red channel
-                for l in range(n):
-                    h = lf[_LF_TEX, l]
-                    lf[_LF_MAP + axis, l] = h if k & 1 == 0 else lf[_LF_MAP + axis, l] - h
-        if bump:
-            for l in range(n):
-                lf[_LF_MAP, l] = -bump_scale * lf[_LF_MAP, l] * 0.5
-                lf[_LF_MAP + 1, l] = -bump_scale * lf[_LF_MAP + 1, l] * 0.5
-                lf[_LF_MAP + 2, l] = 1.0
-                lf[_LF_S, l], lf[_LF_T, l] = lf[_LF_ST0, l], lf[_LF_ST0 + 1, l]
-        else:
-            for l in range(n):
-                for c in range(3):
-                    lf[_LF_MAP + c, l] = 2.0 * lf[_LF_TEX + c, l] - 1.0
-
-    return _map_normals
-
-
-_map_normals = _make_map_normals(sources_stamp(texture_stage))
