@@ -79,14 +79,21 @@ def texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
     return tables
 
 
-def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
-    levels = tex.used_levels
+def level_table(levels) -> np.ndarray:
+    """The level table (L, 3) int64 of (H, W, 4) uint8 levels laid out one
+    after the other in one buffer: byte offset, width, height per level."""
     table = np.zeros((len(levels), 3), np.int64)
     at = 0
     for k, level in enumerate(levels):
         h, w = level.shape[:2]
         table[k] = (at, w, h)
         at += h * w * 4
+    return table
+
+
+def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
+    levels = tex.used_levels
+    table = level_table(levels)
     flat = levels_buffer(levels)                    # the mip chain's own buffer: no copy
     mip = 0
     if tex.mipmapped:

@@ -16,7 +16,7 @@ import numpy as np
 
 from softras.kernels.lanes import _LF_S, _LF_T, _LF_TEX
 from softras.kernels.texture import (_EWA, _LINEAR, FILTER_CODES, Sampler, Texels, _filter_level, _nan_max,
-                                     _tables_cache)
+                                     _tables_cache, level_table)
 from softras.pipeline import libm, texture_beyond
 from softras.pipeline import texture as texture_stage
 from softras.pipeline.texture import WRAP_CODES
@@ -36,12 +36,7 @@ def ripmap_tables(tex: texture_stage.MipTexture):
         return hit[1]
     rip = texture_beyond.ripmap(tex)
     levels = [level for row in rip for level in row]
-    table = np.zeros((len(levels), 3), np.int64)
-    at = 0
-    for k, level in enumerate(levels):
-        h, w = level.shape[:2]
-        table[k] = (at, w, h)
-        at += h * w * 4
+    table = level_table(levels)
     flat = np.concatenate([np.ascontiguousarray(level, np.uint8).reshape(-1) for level in levels])
     sampler = Sampler(FILTER_CODES["linear"], FILTER_CODES[tex.mag_filter],
                       1 if tex.min_filter.endswith("mipmap_nearest") else 2, WRAP_CODES[tex.wrap_s],
