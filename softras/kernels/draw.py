@@ -108,13 +108,13 @@ Samples = namedtuple("Samples", ["offsets", "positions"])
 # A draw's per-fragment operations, as codes: depth function
 # (`softras.pipeline.ops.DEPTH_FUNCS`), whether passed depths are written
 # (depth_write and a depth test), blend mode (`softras.pipeline.ops.BLEND_MODES`),
-# whether the fragment colour is the texel's own (`plain_colors`), and
-# whether the colour is the triangle's, not interpolated (flat shading,
-# `flat_corner_colors`), and whether it is lit per fragment (Phong shading,
-# `softras.kernels.light._phong_words`), and the alpha test: whether the
-# material has one, and its cutoff (`softras.kernels.interpolate._lane_alpha_test`),
-# whether the colour is multiplied by a texture, and the normal map (MAP_CODES,
-# `softras.kernels.maps._map_normals`) and the bump map's scale.
+# whether the fragment colour is the texel's own (`plain_colors`), whether
+# the colour is the triangle's, not interpolated (flat shading,
+# `flat_corner_colors`), whether it is lit per fragment (Phong shading,
+# `softras.kernels.light._phong_words`), the alpha test (whether, and its
+# cutoff: `softras.kernels.interpolate._lane_alpha_test`), whether a texture
+# multiplies the colour, the normal or bump map (NO_MAP, NORMAL_MAP or
+# BUMP_MAP: `softras.kernels.maps._map_normals`) and the bump scale.
 DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat", "lit", "alpha_test",
                                      "cutoff", "texture", "mapped", "bump_scale"])
 NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
@@ -124,13 +124,11 @@ NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
 
 
 def unsupported(scene: Scene, *, precision: str, clipping: str | None, texture_filter=None) -> str | None:
-    """Why ``scene`` must take the general pipeline, or None when this path renders it.
-
-    The caller (`softras.renderer.render_scene`) has already checked the
-    options this path does not look at (RGBA8 framebuffer, texture bounds,
-    tie rule).  Of the ``texture_filter``s (`softras.pipeline.texture_beyond`)
-    this path draws "ripmap" (`softras.kernels.texture_beyond._ripmap_lane`).
-    """
+    """Why ``scene`` must take the general pipeline, or None when this path
+    renders it.  The caller (`softras.renderer.render_scene`) has already
+    checked the options this path does not look at (RGBA8 framebuffer,
+    texture bounds, tie rule).  Of the ``texture_filter``s this path draws
+    "ripmap" (`softras.kernels.texture_beyond._ripmap_lane`)."""
     if precision != "gl":
         return "precision is not gl"
     if clipping not in (None, "llvmpipe"):
@@ -144,9 +142,7 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None, texture_f
             if material.line_problems():            # (the stages refuse these; the loader too)
                 return f"{draw.path}: lines with {', '.join(material.line_problems())}"
             continue
-        for name in (material.texture, material.normal_map, material.bump_map):
-            if name is None:
-                continue
+        for name in filter(None, (material.texture, material.normal_map, material.bump_map)):
             tex = scene.textures[name]
             if (tex.wrap_s not in WRAP_CODES or tex.wrap_t not in WRAP_CODES
                     or tex.mag_filter not in FILTER_CODES or tex.min_filter not in MIN_FILTERS):
@@ -155,8 +151,7 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None, texture_f
 
 
 def textured(material) -> bool:
-    """Whether a triangle draw of ``material`` takes a textured tile driver:
-    it has a texture, or a normal or bump map (both need uvs and whole quads)."""
+    """Whether a draw of ``material`` takes a textured tile driver (a texture, normal or bump map: uvs, quads)."""
     return material.texture is not None or material.normal_map is not None or material.bump_map is not None
 
 
@@ -218,8 +213,8 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
         return
     n_threads = numba.get_num_threads()
     material = draw.material
-    mapped, map_name = ((NORMAL_MAP, material.normal_map) if material.normal_map is not None else
-                        (BUMP_MAP, material.bump_map) if material.bump_map is not None else (NO_MAP, None))
+    mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if material.bump_map is not None else NO_MAP
+    map_name = material.normal_map if material.normal_map is not None else material.bump_map
     lit = material.shading == "phong"
     base = base_colors(scene, draw)                                          # straight, per vertex
     uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured(material)
@@ -243,9 +238,8 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
         tex = texture.prepare(scene.textures[material.texture])
         sampler, texels = (ripmap_tables(tex) if texture_beyond.filter_for(texture_filter, tex.name) == "ripmap"
                            else texture_tables(tex, texture_fixed_point))
-    map_sampler, map_texels = NO_TEXTURE
-    if map_name is not None:
-        map_sampler, map_texels = texture_tables(texture.prepare(scene.textures[map_name]), texture_fixed_point)
+    map_sampler, map_texels = (texture_tables(texture.prepare(scene.textures[map_name]), texture_fixed_point)
+                               if map_name is not None else NO_TEXTURE)
     tiles_x = (width + TILE - 1) // TILE
     tiles_y = (height + TILE - 1) // TILE
     bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
