@@ -15,6 +15,7 @@ import numba
 import numpy as np
 
 from softras.kernels.lanes import _LF_S, _LF_T, _LF_TEX
+from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (_EWA, _LINEAR, FILTER_CODES, Sampler, Texels, _filter_level, _nan_max,
                                      _tables_cache, level_table)
 from softras.pipeline import libm, texture_beyond
@@ -57,58 +58,70 @@ def _ripmap_level(lam, n):
     return float(n - 1) if lam == np.inf else max(lam, 0.0)
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _ripmap_lane(l, lf, sampler, texels, table):
-    """`softras.pipeline.texture_beyond.sample_ripmap` of lane l (float64
-    whatever the precision; its quad's derivatives as `_lanes_lod` takes
-    them, quad differences in float32, then in texels of level 0 in
-    float64 as `softras.pipeline.texture.texel_derivatives` without gl),
-    the ripmap in `ripmap_tables`' layout, into the _LF_TEX rows: the
-    lambdas along u and v (`softras.pipeline.libm._log2` of the footprint's
-    extents), magnified (both <= 0): the mag filter on level 0; else the
-    nearest level (mipmap_nearest) or the four levels around the lambdas,
-    each bilinear (`_filter_level`), weighted and summed in the stage's
-    order."""
-    q = l & -4
-    s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
-    w0, h0 = table[0, 1], table[0, 2]
-    du0 = np.float64(np.float32(lf[_LF_S, q + 1]) - s_tl) * w0
-    du1 = np.float64(np.float32(lf[_LF_T, q + 1]) - t_tl) * h0
-    dv0 = np.float64(np.float32(lf[_LF_S, q + 2]) - s_tl) * w0
-    dv1 = np.float64(np.float32(lf[_LF_T, q + 2]) - t_tl) * h0
-    lam_u = libm._log2(_nan_max(np.abs(du0), np.abs(dv0)))
-    lam_v = libm._log2(_nan_max(np.abs(du1), np.abs(dv1)))
-    s, t = lf[_LF_S, l], lf[_LF_T, l]
-    wrap_s, wrap_t = sampler.wrap_s, sampler.wrap_t
-    if not ((lam_u > 0) | (lam_v > 0)):                 # magnified
-        r, g, b, a = _filter_level(texels, 0, w0, h0, s, t, sampler.mag_filter == _LINEAR, wrap_s, wrap_t)
-    else:
-        n_u = sampler.ripmap
-        n_v = sampler.levels // n_u
-        lu, lv = _ripmap_level(lam_u, n_u), _ripmap_level(lam_v, n_v)
-        if sampler.mip == 1:                            # the nearest level along each axis
-            i0 = i1 = np.int64(min(max(np.ceil(lu - 0.5), 0.0), float(n_u - 1)))
-            j0 = j1 = np.int64(min(max(np.ceil(lv - 0.5), 0.0), float(n_v - 1)))
-            fu = fv = 0.0
+def _make_ripmap_lane(sources: str):
+    """The kernel `_ripmap_lane`, cached under the key ``sources``
+    (`softras.kernels.stamp.sources_stamp`, a closure variable): a function
+    of its own, not inlined, so that the three textured tile drivers call
+    one compiled copy (inlined, it added about 40 s to the compile of each)."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _ripmap_lane(l, lf, sampler, texels, table):
+        """`softras.pipeline.texture_beyond.sample_ripmap` of lane l (float64
+        whatever the precision; its quad's derivatives as `_lanes_lod` takes
+        them, quad differences in float32, then in texels of level 0 in
+        float64 as `softras.pipeline.texture.texel_derivatives` without gl),
+        the ripmap in `ripmap_tables`' layout, into the _LF_TEX rows: the
+        lambdas along u and v (`softras.pipeline.libm._log2` of the footprint's
+        extents), magnified (both <= 0): the mag filter on level 0; else the
+        nearest level (mipmap_nearest) or the four levels around the lambdas,
+        each bilinear (`_filter_level`), weighted and summed in the stage's
+        order."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        q = l & -4
+        s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
+        w0, h0 = table[0, 1], table[0, 2]
+        du0 = np.float64(np.float32(lf[_LF_S, q + 1]) - s_tl) * w0
+        du1 = np.float64(np.float32(lf[_LF_T, q + 1]) - t_tl) * h0
+        dv0 = np.float64(np.float32(lf[_LF_S, q + 2]) - s_tl) * w0
+        dv1 = np.float64(np.float32(lf[_LF_T, q + 2]) - t_tl) * h0
+        lam_u = libm._log2(_nan_max(np.abs(du0), np.abs(dv0)))
+        lam_v = libm._log2(_nan_max(np.abs(du1), np.abs(dv1)))
+        s, t = lf[_LF_S, l], lf[_LF_T, l]
+        wrap_s, wrap_t = sampler.wrap_s, sampler.wrap_t
+        if not ((lam_u > 0) | (lam_v > 0)):                 # magnified
+            r, g, b, a = _filter_level(texels, 0, w0, h0, s, t, sampler.mag_filter == _LINEAR, wrap_s, wrap_t)
         else:
-            i0 = np.int64(min(max(np.floor(lu), 0.0), float(n_u - 1)))
-            j0 = np.int64(min(max(np.floor(lv), 0.0), float(n_v - 1)))
-            fu = lu - i0 if i0 < n_u - 1 else 0.0
-            fv = lv - j0 if j0 < n_v - 1 else 0.0
-            i1, j1 = min(i0 + 1, n_u - 1), min(j0 + 1, n_v - 1)
-        r = g = b = a = 0.0
-        for k in range(4):
-            i = i1 if k & 1 else i0
-            j = j1 if k & 2 else j0
-            weight = (fu if k & 1 else 1 - fu) * (fv if k & 2 else 1 - fv)
-            if sampler.mip == 1:
-                weight = 1.0 if k == 0 else 0.0
-            if weight > 0:
-                row = j * n_u + i
-                cr, cg, cb, ca = _filter_level(texels, table[row, 0], table[row, 1], table[row, 2], s, t, True,
-                                               wrap_s, wrap_t)
-                r, g, b, a = r + weight * cr, g + weight * cg, b + weight * cb, a + weight * ca
-    lf[_LF_TEX, l] = r / 255.0
-    lf[_LF_TEX + 1, l] = g / 255.0
-    lf[_LF_TEX + 2, l] = b / 255.0
-    lf[_LF_TEX + 3, l] = a / 255.0
+            n_u = sampler.ripmap
+            n_v = sampler.levels // n_u
+            lu, lv = _ripmap_level(lam_u, n_u), _ripmap_level(lam_v, n_v)
+            if sampler.mip == 1:                            # the nearest level along each axis
+                i0 = i1 = np.int64(min(max(np.ceil(lu - 0.5), 0.0), float(n_u - 1)))
+                j0 = j1 = np.int64(min(max(np.ceil(lv - 0.5), 0.0), float(n_v - 1)))
+                fu = fv = 0.0
+            else:
+                i0 = np.int64(min(max(np.floor(lu), 0.0), float(n_u - 1)))
+                j0 = np.int64(min(max(np.floor(lv), 0.0), float(n_v - 1)))
+                fu = lu - i0 if i0 < n_u - 1 else 0.0
+                fv = lv - j0 if j0 < n_v - 1 else 0.0
+                i1, j1 = min(i0 + 1, n_u - 1), min(j0 + 1, n_v - 1)
+            r = g = b = a = 0.0
+            for k in range(4):
+                i = i1 if k & 1 else i0
+                j = j1 if k & 2 else j0
+                weight = (fu if k & 1 else 1 - fu) * (fv if k & 2 else 1 - fv)
+                if sampler.mip == 1:
+                    weight = 1.0 if k == 0 else 0.0
+                if weight > 0:
+                    row = j * n_u + i
+                    cr, cg, cb, ca = _filter_level(texels, table[row, 0], table[row, 1], table[row, 2], s, t, True,
+                                                   wrap_s, wrap_t)
+                    r, g, b, a = r + weight * cr, g + weight * cg, b + weight * cb, a + weight * ca
+        lf[_LF_TEX, l] = r / 255.0
+        lf[_LF_TEX + 1, l] = g / 255.0
+        lf[_LF_TEX + 2, l] = b / 255.0
+        lf[_LF_TEX + 3, l] = a / 255.0
+
+    return _ripmap_lane
+
+
+_ripmap_lane = _make_ripmap_lane(sources_stamp(texture_stage, libm))
