@@ -134,8 +134,8 @@ def unsupported(scene: Scene, *, precision: str, clipping: str | None, texture_f
     if clipping not in (None, "llvmpipe"):
         return f"clipping {clipping!r}"
     for name in scene.textures:
-        if texture_beyond.filter_for(texture_filter, name) not in (None, "ripmap"):
-            return f"texture {name!r}: texture_filter {texture_beyond.filter_for(texture_filter, name)!r}"
+        if (beyond := texture_beyond.filter_for(texture_filter, name)) not in (None, "ripmap"):
+            return f"texture {name!r}: texture_filter {beyond!r}"
     for draw in scene.draws:
         material = draw.material
         if draw.mesh.primitive == "lines":

@@ -52,7 +52,7 @@ import numba
 import numpy as np
 
 from softras.kernels import exact_lines
-from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _weights_at
+from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _triple, _weights_at
 from softras.kernels.light import (NO_LIGHTING, _lit_point, _perturb, _unit, base_colors, flat_corner_colors,
                                    scene_lighting)
 from softras.kernels.ops import _uses_depth
@@ -450,13 +450,6 @@ def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
                                        sampler.wrap_s, sampler.wrap_t)
         r, g, b, a = r + frac * (r1 - r), g + frac * (g1 - g), b + frac * (b1 - b), a + frac * (a1 - a)
     return r / 255.0, g / 255.0, b / 255.0, a / 255.0
-
-
-@numba.njit(cache=True, inline="always")
-def _triple(table, t, c):
-    """Value c of set-up triangle t's three corners in table (T', 3, K), as
-    the 3-tuple `_mix` weighs."""
-    return table[t, 0, c], table[t, 1, c], table[t, 2, c]
 
 
 def _make_texels(sources: str):

@@ -55,6 +55,13 @@ def _corner_colors(colors, t):
                 (colors[t, 0, 3], colors[t, 1, 3], colors[t, 2, 3]))
 
 
+@numba.njit(cache=True, inline="always")
+def _triple(table, t, c):
+    """Value c of set-up triangle t's three corners in a corner table
+    (T, 3, K), as the 3-tuple `_mix` weighs."""
+    return table[t, 0, c], table[t, 1, c], table[t, 2, c]
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _barycentric(c, px, py):
     """`softras.pipeline.interpolate.barycentric` at window point (px, py)

@@ -24,7 +24,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix
+from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix, _triple
 from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW,
                                    _LF_W, _LI_WORD)
 from softras.kernels.stamp import sources_stamp
@@ -108,12 +108,8 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
     its term."""
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
     cc = _corner_colors(colors, t)
-    px3 = (lit[t, 0, 0], lit[t, 1, 0], lit[t, 2, 0])
-    py3 = (lit[t, 0, 1], lit[t, 1, 1], lit[t, 2, 1])
-    pz3 = (lit[t, 0, 2], lit[t, 1, 2], lit[t, 2, 2])
-    nx3 = (lit[t, 0, 3], lit[t, 1, 3], lit[t, 2, 3])
-    ny3 = (lit[t, 0, 4], lit[t, 1, 4], lit[t, 2, 4])
-    nz3 = (lit[t, 0, 5], lit[t, 1, 5], lit[t, 2, 5])
+    px3, py3, pz3 = _triple(lit, t, 0), _triple(lit, t, 1), _triple(lit, t, 2)
+    nx3, ny3, nz3 = _triple(lit, t, 3), _triple(lit, t, 4), _triple(lit, t, 5)
     for l in range(n):
         w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
         px, py, pz = _mix(w, px3), _mix(w, py3), _mix(w, pz3)
@@ -127,10 +123,7 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
         lf[_LF_LIT + 2, l] = ambient * _mix(w, cc.b)
         lf[_LF_LIT + 3, l] = _mix(w, cc.a)
     if mapped:
-        tx3 = (lit[t, 0, 6], lit[t, 1, 6], lit[t, 2, 6])
-        ty3 = (lit[t, 0, 7], lit[t, 1, 7], lit[t, 2, 7])
-        tz3 = (lit[t, 0, 8], lit[t, 1, 8], lit[t, 2, 8])
-        tw3 = (lit[t, 0, 9], lit[t, 1, 9], lit[t, 2, 9])
+        tx3, ty3, tz3, tw3 = _triple(lit, t, 6), _triple(lit, t, 7), _triple(lit, t, 8), _triple(lit, t, 9)
         for l in range(n):
             w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
             lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l] = _perturb(

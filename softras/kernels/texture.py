@@ -27,6 +27,7 @@ from softras.kernels.lanes import (_LF_FRAC, _LF_S, _LF_SCALE, _LF_T, _LF_TEX, _
                                    _LI_IMGF, _LI_LEVEL, _LI_LH, _LI_LW, _LI_TWO, _LI_W8, _LI_WORD)
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _lane, _spread, _unspread
 from softras.pipeline import texture as texture_stage
+from softras.pipeline.ops import BYTE_VALUES
 from softras.pipeline.texture import WRAP_CODES, wrap_index
 from softras.scene.texels import levels_buffer
 
@@ -68,11 +69,17 @@ _tables_cache: dict = {}
 def texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
     """A prepared texture as the kernels read it, (`Sampler`, `Texels`); cached
     per prepared texture (`softras.pipeline.texture.prepare` returns the same object for a scene texture)."""
-    key = (id(tex), bool(fixed_point))
+    return cached_tables(tex, bool(fixed_point), lambda: _texture_tables(tex, fixed_point))
+
+
+def cached_tables(tex: texture_stage.MipTexture, kind, make):
+    """The tables ``make()`` builds for the prepared texture ``tex``, once per
+    (texture, kind) (at most 16 kept)."""
+    key = (id(tex), kind)
     hit = _tables_cache.get(key)
     if hit is not None and hit[0] is tex:
         return hit[1]
-    tables = _texture_tables(tex, fixed_point)
+    tables = make()
     if len(_tables_cache) >= 16:
         _tables_cache.clear()
     _tables_cache[key] = (tex, tables)
@@ -197,8 +204,6 @@ def _filter_level(texels, base, lw, lh, s, t, linear, wrap_s, wrap_t):
                             np.float64(texels[at01 + 3]), np.float64(texels[at11 + 3])))
 
 
-# k / 255 for every byte k (the same doubles as the division).
-_BYTE_VALUES = np.arange(256) / 255.0
 
 
 @numba.njit(cache=True, inline="always")
@@ -308,6 +313,18 @@ def _quad_lod(sampler, width0, height0, ddx_s, ddx_t, ddy_s, ddy_t):
     return level0, level1, frac, image_filter, two
 
 
+@numba.njit(cache=True, inline="always")
+def _quad_st_derivatives(l, lf):
+    """The (s, t) derivatives of lane l's 2x2 quad as
+    `softras.pipeline.interpolate.quad_derivatives` takes them: from its
+    top-left, top-right and bottom-left lanes' (s, t) rounded to float32,
+    (ds/dx, dt/dx, ds/dy, dt/dy) in float32."""
+    q = l & -4
+    s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
+    return (np.float32(lf[_LF_S, q + 1]) - s_tl, np.float32(lf[_LF_T, q + 1]) - t_tl,
+            np.float32(lf[_LF_S, q + 2]) - s_tl, np.float32(lf[_LF_T, q + 2]) - t_tl)
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _lanes_lod(n, sampler, width0, height0, lf, li):
     """`_quad_lod` of each of the n / 4 quads listed in the lanes (top-left,
@@ -319,11 +336,8 @@ def _lanes_lod(n, sampler, width0, height0, lf, li):
     any_two = False
     for q in range(n >> 2):
         l = 4 * q
-        s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
-        level0, level1, frac, image_filter, two = _quad_lod(
-            sampler, width0, height0,
-            np.float32(lf[_LF_S, l + 1]) - s_tl, np.float32(lf[_LF_T, l + 1]) - t_tl,
-            np.float32(lf[_LF_S, l + 2]) - s_tl, np.float32(lf[_LF_T, l + 2]) - t_tl)
+        ddx_s, ddx_t, ddy_s, ddy_t = _quad_st_derivatives(l, lf)
+        level0, level1, frac, image_filter, two = _quad_lod(sampler, width0, height0, ddx_s, ddx_t, ddy_s, ddy_t)
         li[_LI_LEVEL, l] = level0
         li[_LI_LEVEL + 1, l] = level1
         li[_LI_IMGF, l] = image_filter
@@ -359,10 +373,8 @@ def _lanes_aniso_levels(n, sampler, width0, height0, lf, li):
     `softras.pipeline.texture.sample_anisotropic_llvmpipe`), no blend."""
     for q in range(n >> 2):
         l = 4 * q
-        s_tl, t_tl = np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l])
-        level = _aniso_level(np.float32(lf[_LF_S, l + 1]) - s_tl, np.float32(lf[_LF_T, l + 1]) - t_tl,
-                             np.float32(lf[_LF_S, l + 2]) - s_tl, np.float32(lf[_LF_T, l + 2]) - t_tl,
-                             width0, height0, sampler.levels - 1)
+        ddx_s, ddx_t, ddy_s, ddy_t = _quad_st_derivatives(l, lf)
+        level = _aniso_level(ddx_s, ddx_t, ddy_s, ddy_t, width0, height0, sampler.levels - 1)
         li[_LI_LEVEL, l] = level
         li[_LI_LEVEL + 1, l] = level
         li[_LI_IMGF, l] = _LINEAR
@@ -376,14 +388,11 @@ def _aniso_lane(l, lf, li, sampler, texels, table, ewa):
     on its quad's `_lanes_aniso_levels` level, the quad's derivatives in
     float32, its own (s, t) in float32) into the _LF_TEX rows; returns False
     where no texel got weight (the caller filters bilinearly)."""
-    q = l & -4
-    s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
+    ddx_s, ddx_t, ddy_s, ddy_t = _quad_st_derivatives(l, lf)
     level = li[_LI_LEVEL, l]
     r, g, b, a, _ = texture_stage.ewa_texel(
         texels, table[level, 0] >> 2, table[level, 1], table[level, 2], level,
-        np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l]),
-        np.float32(lf[_LF_S, q + 1]) - s_tl, np.float32(lf[_LF_S, q + 2]) - s_tl,
-        np.float32(lf[_LF_T, q + 1]) - t_tl, np.float32(lf[_LF_T, q + 2]) - t_tl,
+        np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l]), ddx_s, ddy_s, ddx_t, ddy_t,
         table[0, 1], table[0, 2], sampler.wrap_s, sampler.wrap_t, ewa)
     if r != r:
         return False
@@ -498,7 +507,7 @@ def _sample_lane(l, lf, li, texel, sampler, texels, texels32, table, ewa):
             lanes_texel = x if lv == 0 else _lerp_lanes(li[_LI_W8, l], lanes_texel, x)
     if lanes:
         for c in range(4):
-            lf[_LF_TEX + c, l] = _BYTE_VALUES[_lane(lanes_texel, c)]
+            lf[_LF_TEX + c, l] = BYTE_VALUES[_lane(lanes_texel, c)]
     else:
         if two:
             for c in range(4):

@@ -17,10 +17,11 @@ import numpy as np
 from softras.kernels.lanes import _LF_S, _LF_T, _LF_TEX
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (_EWA, _LINEAR, FILTER_CODES, Sampler, Texels, _filter_level, _nan_max,
-                                     _tables_cache, level_table)
+                                     _quad_st_derivatives, cached_tables, level_table)
 from softras.pipeline import libm, texture_beyond
 from softras.pipeline import texture as texture_stage
 from softras.pipeline.texture import WRAP_CODES
+from softras.scene.texels import levels_buffer
 
 
 def ripmap_tables(tex: texture_stage.MipTexture):
@@ -30,23 +31,18 @@ def ripmap_tables(tex: texture_stage.MipTexture):
     j along v) as one flat buffer, level (i, j) at row j n_u + i of the
     level table; the sampler's ``ripmap`` is n_u, ``levels`` n_u n_v, ``mip``
     1 for a mipmap_nearest min filter (the nearest level) and 2 otherwise.
-    Cached per prepared texture."""
-    key = (id(tex), "ripmap")
-    hit = _tables_cache.get(key)
-    if hit is not None and hit[0] is tex:
-        return hit[1]
+    Cached per prepared texture (`softras.kernels.texture.cached_tables`)."""
+    return cached_tables(tex, "ripmap", lambda: _ripmap_tables(tex))
+
+
+def _ripmap_tables(tex: texture_stage.MipTexture):
     rip = texture_beyond.ripmap(tex)
     levels = [level for row in rip for level in row]
-    table = level_table(levels)
-    flat = np.concatenate([np.ascontiguousarray(level, np.uint8).reshape(-1) for level in levels])
+    flat = levels_buffer(levels)
     sampler = Sampler(FILTER_CODES["linear"], FILTER_CODES[tex.mag_filter],
                       1 if tex.min_filter.endswith("mipmap_nearest") else 2, WRAP_CODES[tex.wrap_s],
                       WRAP_CODES[tex.wrap_t], 0, len(levels), 0, 0, len(rip[0]))
-    tables = sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
-    if len(_tables_cache) >= 16:
-        _tables_cache.clear()
-    _tables_cache[key] = (tex, tables)
-    return tables
+    return sampler, Texels(flat, flat.view(np.uint32), level_table(levels), _EWA)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -77,13 +73,10 @@ def _make_ripmap_lane(sources: str):
         each bilinear (`_filter_level`), weighted and summed in the stage's
         order."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
-        q = l & -4
-        s_tl, t_tl = np.float32(lf[_LF_S, q]), np.float32(lf[_LF_T, q])
         w0, h0 = table[0, 1], table[0, 2]
-        du0 = np.float64(np.float32(lf[_LF_S, q + 1]) - s_tl) * w0
-        du1 = np.float64(np.float32(lf[_LF_T, q + 1]) - t_tl) * h0
-        dv0 = np.float64(np.float32(lf[_LF_S, q + 2]) - s_tl) * w0
-        dv1 = np.float64(np.float32(lf[_LF_T, q + 2]) - t_tl) * h0
+        ddx_s, ddx_t, ddy_s, ddy_t = _quad_st_derivatives(l, lf)
+        du0, du1 = np.float64(ddx_s) * w0, np.float64(ddx_t) * h0
+        dv0, dv1 = np.float64(ddy_s) * w0, np.float64(ddy_t) * h0
         lam_u = libm._log2(_nan_max(np.abs(du0), np.abs(dv0)))
         lam_v = libm._log2(_nan_max(np.abs(du1), np.abs(dv1)))
         s, t = lf[_LF_S, l], lf[_LF_T, l]

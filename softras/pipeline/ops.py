@@ -356,6 +356,12 @@ def resolve(color: np.ndarray, positions: np.ndarray | None = None, *, filter: s
     return out[::-1].copy()
 
 
+# k / 255 for every byte k (the same doubles as numpy's division): an RGBA8
+# buffer's values as the stages hold them (the tent here, and the compiled
+# path's texels, `softras.kernels.texture`).
+BYTE_VALUES = np.arange(256) / 255.0
+
+
 def _tent_filter(color: np.ndarray, positions: np.ndarray) -> np.ndarray:
     """(H, W, S, 4), (S, 2) -> (H, W, 4) float64 tent-weighted mean (see `resolve`).
 
@@ -385,7 +391,6 @@ def _tent_sums(color, as_bytes, weights, sums, out):
     and sample, sums (9,) their sums.  The four channels side by side in the
     innermost loops (each channel's sums in the documented order)."""
     height, width, n_samples = color.shape[0], color.shape[1], color.shape[2]
-    values = np.arange(256) / 255.0                     # byte k -> k / 255, as numpy divides
     for y in numba.prange(height):
         total, partial = np.empty(4), np.empty(4)
         for x in range(width):
@@ -396,10 +401,10 @@ def _tent_sums(color, as_bytes, weights, sums, out):
                 if sums[k] == 0.0 or ny < 0 or ny >= height or nx < 0 or nx >= width:
                     continue
                 for c in range(4):
-                    partial[c] = _value(color[ny, nx, 0, c], as_bytes, values) * weights[k, 0]
+                    partial[c] = _value(color[ny, nx, 0, c], as_bytes) * weights[k, 0]
                 for s in range(1, n_samples):
                     for c in range(4):
-                        partial[c] = partial[c] + _value(color[ny, nx, s, c], as_bytes, values) * weights[k, s]
+                        partial[c] = partial[c] + _value(color[ny, nx, s, c], as_bytes) * weights[k, s]
                 for c in range(4):
                     total[c] = total[c] + partial[c]
                 weight = weight + sums[k]
@@ -408,7 +413,7 @@ def _tent_sums(color, as_bytes, weights, sums, out):
 
 
 @numba.njit(cache=True, inline="always")
-def _value(v, as_bytes, values):
-    """A sample buffer's value v as float64: for a byte k (as_bytes) k / 255,
-    from the table ``values``."""
-    return values[np.int64(v)] if as_bytes else np.float64(v)
+def _value(v, as_bytes):
+    """A sample buffer's value v as float64: for a byte k (as_bytes) k / 255
+    (`BYTE_VALUES`)."""
+    return BYTE_VALUES[np.int64(v)] if as_bytes else np.float64(v)
