@@ -300,8 +300,10 @@ MUTATIONS: tuple[Mutation, ...] = (
              mutate=uv_half_texel),
     Mutation("wrap_swapped", "wrap repeat <-> clamp_to_edge",
              ("texture_wrap_modes", "texture_floor_trilinear", "texture_npot"), mutate=wrap_swapped),
+    # Not texture_npot: its NPOT noise levels may be any value of the texels
+    # near each footprint (texture_bounds.generated_levels), a wrong level too.
     Mutation("nearest_level", "trilinear -> nearest level (linear_mipmap_nearest)",
-             ("texture_floor_trilinear", "texture_photo", "texture_npot"), mutate=nearest_level),
+             ("texture_floor_trilinear", "texture_photo"), mutate=nearest_level),
     Mutation("mipmaps_dropped", "mipmaps dropped (min filter X_mipmap_Y -> X)",
              ("texture_floor_trilinear", "texture_mip_level_colors", "texture_photo"), mutate=mipmaps_dropped),
     Mutation("vertex_moved", "a vertex moved by 1 px (window x)",

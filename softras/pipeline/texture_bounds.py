@@ -638,15 +638,67 @@ def variant_derivatives(tex: MipTexture, candidates: DerivativeCandidates, side:
 _generated: dict[int, tuple] = {}
 
 
+def _footprints(n: int, m: int, grow: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The source texels under each texel of a level reduced from n to m
+    texels along one axis, the footprint grown by ``grow`` texels on each
+    side and clipped to the level: (first, last) inclusive, (m,) int. Texel
+    i of the smaller level covers [i n / m, (i + 1) n / m) of the larger
+    one: texels 2i and 2i + 1 when n is even, up to three when n is odd."""
+    i = np.arange(m)
+    first, last = (i * n) // m, -((-(i + 1) * n) // m) - 1
+    return np.maximum(first - grow, 0), np.minimum(last + grow, n - 1)
+
+
+def _footprint_range(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int],
+                     grow: int) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) of any filter with non-negative weights that reduces a level
+    with per-texel bounds lo, hi (H, W, 4) to the next level's size (w, h),
+    reading only texels within ``grow`` of each footprint (:func:`_footprints`):
+    the least lo and greatest hi over each grown footprint (a min or max over
+    a rectangle is one over columns, then rows)."""
+    def reduce_axis(values, axis, first, last, combine):
+        result = np.take(values, first, axis=axis)
+        for offset in range(1, int((last - first).max(initial=0)) + 1):
+            result = combine(result, np.take(values, np.minimum(first + offset, last), axis=axis))
+        return result
+
+    w, h = size
+    x0, x1 = _footprints(lo.shape[1], w, grow)
+    y0, y1 = _footprints(lo.shape[0], h, grow)
+    return tuple(reduce_axis(reduce_axis(values, 1, x0, x1, combine), 0, y0, y1, combine)
+                 for values, combine in ((lo, np.minimum), (hi, np.maximum)))
+
+
+#: How far (texels) beyond its footprint a generated NPOT level's filter may
+#: read: 1, measured on an NVIDIA H200 (docs/verification.md), whose 7 x 6 ->
+#: 3 x 3 reduction weighs rows 1 and 2 for the texel whose footprint is rows 2-3.
+NPOT_FILTER_REACH = 1
+
+
 def generated_levels(tex: MipTexture) -> tuple[tuple, tuple]:
     """Per-texel bounds of the mip chain a GL generates from ``tex``'s level 0.
 
-    GL 4.6 section 8.14.4: "No particular filter algorithm is required,
-    though a box filter is recommended." The bound: level k lies between the
-    rounded 2x2 box chain and llvmpipe's linear-blit chain
-    (`softras.scene.texels.mip_chain`, both reduced from level 0), widened by k/255:
-    one rounding step per reduction (softpipe's float-weighted blit stays
-    within 1/255 of llvmpipe's per step, measured in docs/textures_and_lighting.md).
+    GL 4.6 section 8.14.4: the levels are "computed by repeated, filtered
+    reduction of the level base array. [...] No particular filter algorithm
+    is required, though a box filter is recommended." Where a level halves
+    exactly (even sizes), the bound is the rounded 2x2 box chain and
+    llvmpipe's linear-blit chain (`softras.scene.texels.mip_chain`, both
+    reduced from level 0), widened by k/255: one rounding step per reduction
+    (softpipe's float-weighted blit stays within 1/255 of llvmpipe's per
+    step, measured in docs/textures_and_lighting.md). Once a reduction has
+    an odd size, implementations filter differently (llvmpipe's blit samples
+    between texel centres; an NVIDIA H200 weighs texels by the area of each
+    footprint they cover on most sizes, and reads one texel beyond the
+    footprint on some, differing from llvmpipe by up to 218/255): from that
+    level on, each texel may also take any value a filter with non-negative
+    weights gives over its footprint grown by :data:`NPOT_FILTER_REACH`
+    texels in the level above, bounded from that level's own bounds
+    (:func:`_footprint_range`; a rounded weighted mean of integers in
+    [a, b] stays in [a, b]). A claim beyond the letter of 8.14.4, which
+    bounds nothing; where it is loose (noise textures, deep levels) a
+    wrong level or filter on an NPOT texture cannot be told from GL's
+    freedom (docs/verification.md).
+
     Returns (levels_lo, levels_hi): tuples of (H_l, W_l, 4) float64 on the
     0..255 scale, level 0 exact. Cached per MipTexture.
     """
@@ -658,10 +710,20 @@ def generated_levels(tex: MipTexture) -> tuple[tuple, tuple]:
     levels = tex.levels
     box = mip_chain(levels[0], method="box")
     lows, highs = [], []
+    odd = False
     for k, (blit, boxed) in enumerate(zip(levels, box)):
         blit, boxed = blit.astype(np.float64), boxed.astype(np.float64)
-        lows.append(np.clip(np.minimum(blit, boxed) - k, 0.0, 255.0))
-        highs.append(np.clip(np.maximum(blit, boxed) + k, 0.0, 255.0))
+        lo = np.clip(np.minimum(blit, boxed) - k, 0.0, 255.0)
+        hi = np.clip(np.maximum(blit, boxed) + k, 0.0, 255.0)
+        if k > 0:
+            above = lows[-1].shape
+            odd = odd or (above[0] % 2 == 1 and above[0] > 1) or (above[1] % 2 == 1 and above[1] > 1)
+            if odd:
+                f_lo, f_hi = _footprint_range(lows[-1], highs[-1], (blit.shape[1], blit.shape[0]),
+                                               NPOT_FILTER_REACH)
+                lo, hi = np.minimum(lo, f_lo), np.maximum(hi, f_hi)
+        lows.append(lo)
+        highs.append(hi)
     result = (tuple(lows), tuple(highs))
     _generated[id(tex)] = (tex, result)
     return result
