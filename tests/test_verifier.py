@@ -207,6 +207,28 @@ def test_conformance_gives_not_supported(monkeypatch):
     assert conformance.counts([result])["not_supported"] == 1
 
 
+# The 8x positions an NVIDIA H200 reports (glGetMultisamplefv, driver 580.159.04).
+NVIDIA_8X = [[0.5625, 0.3125], [0.4375, 0.6875], [0.8125, 0.5625], [0.3125, 0.1875],
+             [0.1875, 0.8125], [0.0625, 0.4375], [0.6875, 0.9375], [0.9375, 0.0625]]
+
+
+def test_conformance_samples_where_the_gl_does(monkeypatch):
+    """A GL that draws 8 samples (softras's "gl" pattern has only 1 and 4):
+    conformance renders softras at the positions the GL reports, so a GL
+    drawing there passes; a GL sampling elsewhere (Halton points) differs."""
+    import dataclasses
+
+    scene = dataclasses.replace(softras.load_scene(SCENES / "msaa_fan.json"), samples=8)
+    caps = CAPS_FAKE | {"max_texture_size": 4096, "sample_positions": {"8": NVIDIA_8X}}
+    monkeypatch.setattr(conformance, "_gl_info", lambda: caps)
+    at_gl = np.asarray(NVIDIA_8X)
+    result = conformance.check_scene(scene, render_gl=lambda s: render_scene(s, pattern=at_gl), profile="spec")
+    assert result.verdict == verifier.PASS, result.reasons
+    assert result.figures["max_diff"] == 0
+    grid = conformance.check_scene(scene, render_gl=lambda s: render_scene(s, pattern="halton"), profile="spec")
+    assert grid.figures["max_diff"] > 0
+
+
 # --------------------------------------------------------------------------- command line
 
 

@@ -194,10 +194,15 @@ class SceneResult:
                 "seconds": round(self.seconds, 4), "attempts": [dict(attempt) for attempt in self.attempts]}
 
 
-def _render_soft(scene) -> np.ndarray:
+def _render_soft(scene, pattern=None) -> np.ndarray:
+    """softras's picture at precision "gl"; ``pattern``: the reference GL's
+    sample positions where they are not softras's "gl" pattern
+    (`softras.verification.verifier.gl_positions`), so that both pictures
+    sample at the same places (a GPU's 4x, or its 8x and 16x, which softras's
+    "gl" pattern does not have)."""
     from softras.renderer import render_scene
 
-    return render_scene(scene, precision="gl")
+    return render_scene(scene, precision="gl", pattern=pattern)
 
 
 def _render_gl(scene) -> np.ndarray:
@@ -284,7 +289,8 @@ def check_scene(path, *, render_soft: Callable | None = None,
         result.images["gl"] = amb.as_uint8(gl)
         t = time.perf_counter()
         try:
-            soft = render_soft(scene)
+            soft = (_render_soft(scene, verifier.gl_positions(scene, capabilities))
+                    if render_soft is _render_soft else render_soft(scene))
         except NotImplementedError as error:
             result.reasons.append(f"softras cannot render the scene: {_one_line(error)}")
             return result
@@ -294,7 +300,7 @@ def check_scene(path, *, render_soft: Callable | None = None,
         if chosen == "spec":
             bounds = verifier.spec_bounds(scene, capabilities)
             verdict, reasons, figures, images = verifier.judge_spec(
-                scene, soft, gl, result.tolerance, bounds, draw_ids=verifier.draw_ids(scene))
+                scene, soft, gl, result.tolerance, bounds, draw_ids=verifier.draw_ids(scene, capabilities=capabilities))
             times["bounds_seconds"] = time.perf_counter() - t
         else:
             soft, gl = amb.as_uint8(soft), amb.as_uint8(gl)

@@ -291,7 +291,7 @@ def _widen_lines(lo: np.ndarray, hi: np.ndarray, lines: np.ndarray) -> tuple[np.
     return np.where(near[..., None], wide_lo, lo), np.where(near[..., None], wide_hi, hi)
 
 
-def _gl_positions(scene, capabilities: dict):
+def gl_positions(scene, capabilities: dict):
     """The reference GL's sample positions for the scene's sample count when
     they are not softras's GL pattern (llvmpipe's), else None.
 
@@ -379,7 +379,7 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
             for side in ("lo", "hi"):
                 variants.append((f"texture bounds {side} ({precision})", scene,
                                  {"precision": precision, "texture_bounds": side}))
-    pattern = _gl_positions(scene, caps)
+    pattern = gl_positions(scene, caps)
     lo = hi = None
     pictures = {}
     for name, variant, options in variants:
@@ -598,12 +598,18 @@ def judge_strict(scene, soft: np.ndarray, gl: np.ndarray, tolerance: dict, *, so
     return verdict, reasons, figures, images
 
 
-def draw_ids(scene, render: Callable[..., np.ndarray] | None = None) -> np.ndarray:
-    """(H, W) int: the draw softras sees at each pixel (-1: background), row 0 = top."""
+def draw_ids(scene, render: Callable[..., np.ndarray] | None = None, *,
+             capabilities: dict | None = None) -> np.ndarray:
+    """(H, W) int: the draw softras sees at each pixel (-1: background), row 0 = top,
+    sampled where the reference GL samples (:func:`gl_positions`)."""
     from softras.verification.ambiguity import decode_ids, id_scene, primitive_offsets
 
     render = render or _default_render
-    numbers = decode_ids(np.asarray(render(id_scene(scene), precision="gl")), scene)[0]
+    options = {"precision": "gl"}
+    pattern = gl_positions(scene, capabilities or {})
+    if pattern is not None:
+        options["pattern"] = pattern
+    numbers = decode_ids(np.asarray(render(id_scene(scene), **options)), scene)[0]
     offsets = primitive_offsets(scene)
     draws = np.searchsorted(offsets, numbers - 1, side="right") - 1
     return np.where(numbers > 0, draws, -1)
@@ -702,7 +708,7 @@ def verify(scene, image, reference, *, profile: str = "spec", capabilities: dict
     if chosen == "spec":
         bounds = spec_bounds(scene, capabilities)
         verdict, reasons, figures, images = judge_spec(scene, image, reference, tolerance, bounds,
-                                                       draw_ids=draw_ids(scene))
+                                                       draw_ids=draw_ids(scene, capabilities=capabilities))
         return Verification(verdict, chosen, reasons, figures, images, bounds)
     from softras.verification.ambiguity import ambiguity_mask, as_uint8
 
