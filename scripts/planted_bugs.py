@@ -16,9 +16,12 @@ failure there is a false failure).
 
 Two GL implementations draw the references, each in its own process (the
 Gallium driver is chosen when the context is created): Mesa llvmpipe and
-Mesa softpipe (``GALLIUM_DRIVER=softpipe``). A child process writes one .npy
-picture per scene and ``glref.info()`` as JSON into a temporary folder; the
-judging happens here.
+Mesa softpipe (``GALLIUM_DRIVER=softpipe``). A child process writes the
+pictures (``pictures.npz``) and ``glref.info()`` (``info.json``) into a
+folder; the judging happens here. ``--draw FOLDER`` writes such a folder
+with this machine's GL and stops (on a GPU machine, say); ``--recorded
+FOLDER`` judges against one drawn elsewhere as a further implementation
+(tests/recorded/nvidia_h200: an NVIDIA H200's).
 
 A mutation the GL specification permits is marked ``permitted``: a
 consistent swap of the fill rule's tie rule (GL 4.6 section 14.6.1 asks only
@@ -29,6 +32,7 @@ llvmpipe, through its tolerance and ambiguity mask) is shown beside it on
 llvmpipe, for information.
 
     python scripts/planted_bugs.py [--quick] [--only NAMES] [--json FILE] [--implementations llvmpipe,softpipe]
+                                   [--recorded FOLDER ...] [--draw FOLDER]
 
 Prints a Markdown table (mutation x scene x implementation: the verdict and
 the number of the image's pixels outside the spec bounds; "changed px": the
@@ -352,20 +356,21 @@ def scene_path(name: str) -> Path:
 
 _CHILD = r"""
 import json, sys
+from pathlib import Path
 import numpy as np
 import glref
 from softras.scene import load_scene
 
-out, paths = sys.argv[1], sys.argv[2:]
-manifest = {}
-for i, path in enumerate(paths):
+out, paths = Path(sys.argv[1]), sys.argv[2:]
+pictures, reasons = {}, {}
+for path in paths:
     try:
-        np.save(f"{out}/{i}.npy", glref.render(load_scene(path)), allow_pickle=False)
-        manifest[path] = {"file": f"{i}.npy"}
+        pictures[Path(path).stem] = glref.render(load_scene(path))
     except (glref.NotSupported, NotImplementedError) as exc:
-        manifest[path] = {"not_supported": " ".join(str(exc).split())}
-with open(f"{out}/info.json", "w") as f:
-    json.dump({"info": glref.info(), "pictures": manifest}, f)
+        reasons[Path(path).stem] = " ".join(str(exc).split())
+out.mkdir(parents=True, exist_ok=True)
+np.savez_compressed(out / "pictures.npz", **pictures)
+(out / "info.json").write_text(json.dumps({"info": glref.info(), "not_supported": reasons}, indent=1))
 """
 
 
@@ -380,29 +385,46 @@ class Reference:
     seconds: float = 0.0
 
 
-def gl_pictures_subprocess(driver: str, names, name: str | None = None) -> Reference:
-    """GL's pictures of the scenes, drawn by a child process with ``GALLIUM_DRIVER=driver``."""
+def gl_pictures_subprocess(driver: str | None, names, name: str | None = None,
+                           folder: str | os.PathLike | None = None) -> Reference:
+    """GL's pictures of the scenes, drawn by a child process with
+    ``GALLIUM_DRIVER=driver`` (None: the environment's GL), written to
+    ``folder`` (default a temporary one) as :func:`recorded_pictures` reads them."""
     start = time.perf_counter()
     paths = [str(scene_path(n)) for n in names]
-    env = dict(os.environ, GALLIUM_DRIVER=driver)
+    env = dict(os.environ) if driver is None else dict(os.environ, GALLIUM_DRIVER=driver)
     env["PYTHONPATH"] = os.pathsep.join([str(REPO)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
-    with tempfile.TemporaryDirectory(prefix=f"planted_{driver}_") as out:
-        done = subprocess.run([sys.executable, "-c", _CHILD, out, *paths], env=env, cwd=str(REPO),
+    with tempfile.TemporaryDirectory(prefix=f"planted_{driver}_") as scratch:
+        out = Path(folder) if folder is not None else Path(scratch)
+        done = subprocess.run([sys.executable, "-c", _CHILD, str(out), *paths], env=env, cwd=str(REPO),
                               capture_output=True, text=True)
         if done.returncode != 0:
             raise RuntimeError(f"GL pictures with GALLIUM_DRIVER={driver} failed "
                                f"(exit {done.returncode}): {done.stderr.strip()[-2000:]}")
-        record = json.loads(Path(out, "info.json").read_text())
-        pictures: dict[str, np.ndarray | str] = {}
-        for n, path in zip(names, paths):
-            entry = record["pictures"][path]
-            pictures[n] = (np.load(Path(out, entry["file"]), allow_pickle=False) if "file" in entry
-                           else entry["not_supported"])
-    info = record["info"]
-    renderer = str(info.get("GL_RENDERER", ""))
-    if not renderer.startswith(driver):
+        reference = recorded_pictures(out, names, name or driver)
+    renderer = str(reference.info.get("GL_RENDERER", ""))
+    if driver is not None and not renderer.startswith(driver):
         raise RuntimeError(f"asked for GALLIUM_DRIVER={driver}, got GL_RENDERER {renderer!r}")
-    return Reference(name or driver, info, pictures, time.perf_counter() - start)
+    reference.seconds = time.perf_counter() - start
+    return reference
+
+
+def recorded_pictures(folder: str | os.PathLike, names, name: str | None = None) -> Reference:
+    """GL's pictures recorded in ``folder`` (``pictures.npz``: one (H, W, 4)
+    picture per scene name; ``info.json``: ``{"info": glref.info(),
+    "not_supported": {name: reason}}``), as ``--draw FOLDER`` writes them on
+    the machine with that GL (a GPU machine, say); a scene missing there is
+    "not recorded"."""
+    folder = Path(folder)
+    record = json.loads((folder / "info.json").read_text(encoding="utf-8"))
+    with np.load(folder / "pictures.npz", allow_pickle=False) as data:
+        stored = {key: data[key] for key in data.files}
+    reasons = record.get("not_supported", {})
+    pictures: dict[str, np.ndarray | str] = {n: stored[n] if n in stored else reasons.get(n, "not recorded")
+                                             for n in names}
+    info = record["info"]
+    label = name or str(info.get("GL_RENDERER", "gl")).split("/")[0].split()[0]
+    return Reference(label, info, pictures)
 
 
 def gl_pictures_in_process(names, name: str | None = None) -> Reference:
@@ -607,6 +629,10 @@ def main(argv=None) -> int:
     parser.add_argument("--implementations", default=",".join(IMPLEMENTATIONS),
                         help="Gallium drivers drawing the references, each in a child process "
                              "(default llvmpipe,softpipe)")
+    parser.add_argument("--recorded", metavar="FOLDER", action="append", default=[],
+                        help="also judge against a GL's pictures recorded elsewhere with --draw (repeatable)")
+    parser.add_argument("--draw", metavar="FOLDER",
+                        help="only draw this machine's GL pictures of the scenes into FOLDER, and exit")
     parser.add_argument("--only", metavar="NAMES", help="comma-separated mutation names")
     parser.add_argument("-v", "--verbose", action="store_true", help="print each verdict as it is made")
     args = parser.parse_args(argv)
@@ -622,7 +648,12 @@ def main(argv=None) -> int:
         mutations = quick(mutations)
     started = time.perf_counter()
     names = scene_names(mutations)
-    references = [gl_pictures_subprocess(driver, names) for driver in args.implementations.split(",")]
+    if args.draw:
+        ref = gl_pictures_subprocess(None, names, folder=args.draw)
+        print(f"{args.draw}: {ref.info.get('GL_RENDERER')}, {len(names)} scenes in {ref.seconds:.1f} s")
+        return 0
+    references = [gl_pictures_subprocess(driver, names) for driver in args.implementations.split(",") if driver]
+    references += [recorded_pictures(folder, names) for folder in args.recorded]
     log = (lambda line: print(line, file=sys.stderr, flush=True)) if args.verbose else None
     rows = run(references, mutations, log=log)
     seconds = time.perf_counter() - started

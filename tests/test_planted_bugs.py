@@ -1,9 +1,11 @@
 """Planted bugs (scripts/planted_bugs.py): the spec profile fails every one.
 
 Each planted bug is judged against GL's picture of the unmodified scene under
-``profile="spec"``: on llvmpipe in this process and on softpipe through the
+``profile="spec"``: on llvmpipe in this process, on softpipe through the
 script's child process (``GALLIUM_DRIVER=softpipe``: the driver is chosen
-when a context is created). Every bug in every scene of the script's list
+when a context is created), and on an NVIDIA H200's pictures recorded in
+tests/recorded/nvidia_h200 (``scripts/planted_bugs.py --draw`` there; no
+GPU is needed to judge them). Every bug in every scene of the script's list
 (about 20 s once numba's kernels are cached), as ``python
 scripts/planted_bugs.py`` does.
 """
@@ -27,6 +29,7 @@ MUTATIONS = pb.MUTATIONS
 BUGS = [(m.name, scene) for m in MUTATIONS if not m.permitted for scene in m.scenes]
 #: The consistent fill-rule swap, which the specification permits (see below).
 SWAP = next(m for m in MUTATIONS if m.permitted)
+RECORDED_GPU = REPO / "tests" / "recorded" / "nvidia_h200"
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +46,7 @@ def references():
             pytest.skip(str(exc))
         raise
     assert glref.info()["GL_RENDERER"].startswith("llvmpipe")    # the child did not change this process
-    return [here, softpipe]
+    return [here, softpipe, pb.recorded_pictures(RECORDED_GPU, pb.scene_names(MUTATIONS))]
 
 
 @pytest.fixture(scope="module")
@@ -56,9 +59,10 @@ def _describe(row) -> str:
 
 
 @pytest.mark.gl
-def test_both_implementations_drew_every_scene(references):
-    assert [r.name for r in references] == ["llvmpipe", "softpipe"]
+def test_every_implementation_drew_every_scene(references):
+    assert [r.name for r in references] == ["llvmpipe", "softpipe", "NVIDIA"]
     assert references[1].info["GL_RENDERER"].startswith("softpipe")
+    assert references[2].info["GL_RENDERER"].startswith("NVIDIA H200")
     for ref in references:
         for name, picture in ref.pictures.items():
             assert isinstance(picture, np.ndarray), f"{ref.name} could not draw {name}: {picture}"
@@ -68,7 +72,7 @@ def test_both_implementations_drew_every_scene(references):
 @pytest.mark.parametrize("mutation, scene", BUGS)
 def test_planted_bug_fails_under_spec(rows, mutation, scene):
     mine = [r for r in rows if r.mutation == mutation and r.scene == scene and r.profile == "spec"]
-    assert len(mine) == 2                                      # two implementations
+    assert len(mine) == 3                                      # three implementations
     for row in mine:
         assert row.changed_pixels > 0, f"{mutation} changes nothing in {scene}"
         assert row.verdict == pb.FAIL, _describe(row)
@@ -78,7 +82,7 @@ def test_planted_bug_fails_under_spec(rows, mutation, scene):
 @pytest.mark.gl
 def test_no_unmodified_scene_fails(rows):
     clean = [r for r in rows if r.mutation is None]
-    assert len(clean) == 2 * len(pb.scene_names(MUTATIONS))
+    assert len(clean) == 3 * len(pb.scene_names(MUTATIONS))
     assert pb.false_failures(clean) == [], [_describe(r) for r in pb.false_failures(clean)]
 
 
@@ -87,7 +91,7 @@ def test_no_unmodified_scene_fails(rows):
 def test_consistent_fill_rule_swap_is_not_failed_under_spec(rows, scene):
     """GL 4.6 section 14.6.1 permits either consistent tie rule: not a bug."""
     mine = [r for r in rows if r.mutation == SWAP.name and r.scene == scene and r.profile == "spec"]
-    assert len(mine) == 2
+    assert len(mine) == 3
     for row in mine:
         assert row.changed_pixels > 0                          # the swap is visible in this scene
         assert row.verdict != pb.FAIL, _describe(row)
