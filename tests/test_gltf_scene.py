@@ -12,7 +12,7 @@ the file says.  The checks:
   winding), the first camera of the traversal is used, and a file without
   a camera gets the documented framing camera;
 - the documented mappings (metallic-roughness to Blinn-Phong, picture size,
-  OPAQUE ignores alpha);
+  OPAQUE ignores alpha, normalTexture's green up the image);
 - `softras render model.glb` works; malformed and unsupported files are one
   line naming the file and the glTF place, exit 2, nothing written;
 - conformance finds .gltf / .glb files in folders.
@@ -154,6 +154,50 @@ def test_mask_and_blend_soft_matches_gl(tmp_path):
     soft, gl = soft_and_gl(scene)
     np.testing.assert_array_equal(soft, gl)
     assert tuple(soft[128, 10]) == (128, 0, 128, 255)         # OPAQUE: alpha 0.1 ignored
+
+
+def normal_mapped_quad(tmp_path, green: int, name="bumpy.gltf", **info):
+    """A lit quad facing the camera, its normalTexture the glTF tangent-space
+    normal (0, +-0.6, 0.8) (green 204: up the image; 51: down) but for a red
+    ramp in four middle columns (x tilts, so the map is not uniform), and a directional
+    light from above and in front (KHR_lights_punctual, travelling along
+    (0, -1, -1) / sqrt 2)."""
+    pixels = np.zeros((16, 16, 4), np.uint8)
+    pixels[...] = (128, green, 230, 255)
+    pixels[:, 6:10, 0] = np.arange(96, 160, 16, dtype=np.uint8)     # x tilts across four columns
+    g = GltfWriter()
+    g.doc["extensionsUsed"] = ["KHR_lights_punctual"]
+    g.doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 1.0}]}}
+    texture = g.texture(g.image(pixels), magFilter=9729, minFilter=9987)
+    m = g.add("materials", {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1], "metallicFactor": 0.0,
+                                                     "roughnessFactor": 0.6},
+                            "normalTexture": {"index": texture, **info}})
+    p, uv, t = make.quad(2, 2)
+    light = g.node(name="sun", rotation=[-0.3826834, 0, 0, 0.9238795],
+                   extensions={"KHR_lights_punctual": {"light": 0}})
+    g.scene(ortho_camera(g), light,
+            g.node(mesh=g.mesh(g.primitive(p, t, normals=np.tile([0.0, 0.0, 1.0], (4, 1)), uvs=uv, material=m))))
+    return g.write(tmp_path / name)
+
+
+@pytest.mark.gl
+def test_normal_texture_soft_matches_gl_and_green_points_up(tmp_path):
+    """glTF's normal maps point +Y up the image: a normal tilted up faces the
+    light from above (brighter) and one tilted down turns away; the loader's
+    copy has green 255 - G, softras's convention (docs/gltf.md)."""
+    up, down = (load_scene(str(normal_mapped_quad(tmp_path, green, f"n{green}.gltf"))) for green in (204, 51))
+    draw = up.draws[0]
+    assert draw.material.normal_map is not None and draw.material.shading == "phong"
+    assert up.textures[draw.material.normal_map].levels[0][0, 0, :3].tolist() == [128, 51, 230]
+    lit_up, lit_down = soft_and_gl(up)[0], soft_and_gl(down)[0]
+    centre = lit_up[64:192, 16:80, :3].astype(int).mean(), lit_down[64:192, 16:80, :3].astype(int).mean()
+    assert centre[0] > centre[1] + 60, centre
+
+
+def test_normal_texture_scale_other_than_1_is_refused(tmp_path):
+    path = normal_mapped_quad(tmp_path, 204, scale=0.5)
+    with pytest.raises(SceneError, match=r"materials\[0\]\.normalTexture\.scale: 0\.5 not supported \(only 1\)"):
+        load_scene(str(path))
 
 
 @pytest.mark.gl

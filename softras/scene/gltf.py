@@ -298,8 +298,9 @@ class _Builder:
             budget[0] -= triangles
             material, blend, cull, opaque = self.material(primitive.get("material"), place)
             arrays = self.primitive_mesh(m, p, mirrored, opaque, material.shading != "unlit")
-            if material.texture is not None and arrays.uvs is None:
-                raise BadFile(f"{place}: its material has a baseColorTexture but it has no TEXCOORD_0")
+            if arrays.uvs is None and (material.texture is not None or material.normal_map is not None):
+                what = "baseColorTexture" if material.texture is not None else "normalTexture"
+                raise BadFile(f"{place}: its material has a {what} but it has no TEXCOORD_0")
             draws.append(Draw(path=f"nodes[{n}].mesh.primitives[{p}]", name=str(node.get("name", f"nodes[{n}]")),
                               world=_readonly(world.copy()), mesh=arrays, material=material,
                               depth_test="less", depth_write=True, cull=cull, blend=blend))
@@ -341,7 +342,7 @@ class _Builder:
         entry, place = ({}, f"{where} (default material)") if index is None else \
             (self.file.item("materials", index, f"{where}.material"), f"materials[{index}]")
         extensions = _refuse_extensions(entry, place, ("KHR_materials_unlit",))
-        for key in ("normalTexture", "occlusionTexture", "emissiveTexture"):
+        for key in ("occlusionTexture", "emissiveTexture"):
             if key in entry:
                 raise BadFile(f"{place}.{key}: not supported")
         if any(numbers(entry.get("emissiveFactor", [0, 0, 0]), 3, f"{place}.emissiveFactor", 0.0, 1.0)):
@@ -370,14 +371,26 @@ class _Builder:
         if not isinstance(double, bool):
             raise BadFile(f"{place}.doubleSided: expected true or false")
         unlit = "KHR_materials_unlit" in extensions
+        normal_map = None
+        if "normalTexture" in entry and not unlit:      # an unlit material has no lighting to perturb
+            info = entry["normalTexture"]
+            scale = number(info.get("scale", 1.0), f"{place}.normalTexture.scale") if isinstance(info, dict) else 1.0
+            if scale != 1.0:
+                raise BadFile(f"{place}.normalTexture.scale: {scale!r} not supported (only 1)")
+            normal_map = self.texture(info, f"{place}.normalTexture", opaque=True, green_up=True)
         # (An unlit material carries the mapped factors too, unread.)
         material = Material(color=_readonly(color), texture=texture, shading="unlit" if unlit else "phong",
-                            alpha_cutoff=cutoff, **blinn_phong_from_pbr(color, metallic, roughness))
+                            alpha_cutoff=cutoff, normal_map=normal_map,
+                            **blinn_phong_from_pbr(color, metallic, roughness))
         return material, "over" if mode == "BLEND" else "none", "none" if double else "back", opaque
 
-    def texture(self, info, where: str, opaque: bool) -> str:
+    def texture(self, info, where: str, opaque: bool, green_up: bool = False) -> str:
         """The scene texture name of a textureInfo (created once per texture and
-        alpha handling: an OPAQUE material's copy has alpha 255)."""
+        alpha handling: an OPAQUE material's copy has alpha 255). ``green_up``:
+        a normalTexture, whose green channel is glTF's +Y, up the image
+        (decreasing v); softras's normal maps have +Y along increasing t, down
+        the image (docs/scene_format.md), so the copy has green 255 - G (the
+        byte of -y: 2 (255 - G) / 255 - 1 = -(2 G / 255 - 1), exactly)."""
         if not isinstance(info, dict) or "index" not in info:
             raise BadFile(f"{where}: expected an object with an index")
         _refuse_extensions(info, where)
@@ -386,7 +399,7 @@ class _Builder:
         index = info["index"]
         texture = self.file.item("textures", index, f"{where}.index")
         _refuse_extensions(texture, f"textures[{index}]")
-        name = f"textures[{index}]" + (" (alpha 1)" if opaque else "")
+        name = f"textures[{index}]" + (" (normals, green down)" if green_up else " (alpha 1)" if opaque else "")
         if name in self.textures:
             return name
         if "source" not in texture:
@@ -406,6 +419,8 @@ class _Builder:
         if opaque:
             decoded = decoded.copy()
             decoded[..., 3] = 255
+        if green_up:
+            decoded[..., 1] = 255 - decoded[..., 1]
         self.textures[name] = Texture(name=name, image=None, wrap_s=modes["wrapS"], wrap_t=modes["wrapT"],
                                       min_filter=modes["minFilter"], mag_filter=modes["magFilter"],
                                       max_anisotropy=1.0, decoded=_readonly(decoded))
