@@ -26,6 +26,7 @@ import numpy as np
 from softras.kernels.lanes import (_LF_FRAC, _LF_S, _LF_SCALE, _LF_T, _LF_TEX, _LI_ADDR, _LI_BASE, _LI_FRAC8,
                                    _LI_IMGF, _LI_LEVEL, _LI_LH, _LI_LW, _LI_TWO, _LI_W8, _LI_WORD)
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _lane, _spread, _unspread
+from softras.kernels.stamp import sources_stamp
 from softras.pipeline import texture as texture_stage
 from softras.pipeline.ops import BYTE_VALUES
 from softras.pipeline.texture import WRAP_CODES, wrap_index
@@ -382,25 +383,39 @@ def _lanes_aniso_levels(n, sampler, width0, height0, lf, li):
         lf[_LF_FRAC, l] = 0.0
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _aniso_lane(l, lf, li, sampler, texels, table, ewa):
-    """llvmpipe's anisotropic filter of lane l (`softras.pipeline.texture.ewa_texel`
-    on its quad's `_lanes_aniso_levels` level, the quad's derivatives in
-    float32, its own (s, t) in float32) into the _LF_TEX rows; returns False
-    where no texel got weight (the caller filters bilinearly)."""
-    ddx_s, ddx_t, ddy_s, ddy_t = _quad_st_derivatives(l, lf)
-    level = li[_LI_LEVEL, l]
-    r, g, b, a, _ = texture_stage.ewa_texel(
-        texels, table[level, 0] >> 2, table[level, 1], table[level, 2], level,
-        np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l]), ddx_s, ddy_s, ddx_t, ddy_t,
-        table[0, 1], table[0, 2], sampler.wrap_s, sampler.wrap_t, ewa)
-    if r != r:
-        return False
-    lf[_LF_TEX, l] = np.float64(r)
-    lf[_LF_TEX + 1, l] = np.float64(g)
-    lf[_LF_TEX + 2, l] = np.float64(b)
-    lf[_LF_TEX + 3, l] = np.float64(a)
-    return True
+def _make_aniso_lane(sources: str):
+    """The kernel `_aniso_lane`, cached under the key ``sources``
+    (`softras.kernels.stamp.sources_stamp`, a closure variable): a function
+    of its own, not inlined, as `softras.kernels.texture_beyond._ripmap_lane`,
+    so that the textured tile drivers call one compiled copy of llvmpipe's
+    anisotropic filter (inlined, it made each driver's compile longer; see
+    docs/speed.md)."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _aniso_lane(l, lf, li, sampler, texels, table, ewa):
+        """llvmpipe's anisotropic filter of lane l (`softras.pipeline.texture.ewa_texel`
+        on its quad's `_lanes_aniso_levels` level, the quad's derivatives in
+        float32, its own (s, t) in float32) into the _LF_TEX rows; returns False
+        where no texel got weight (the caller filters bilinearly)."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        ddx_s, ddx_t, ddy_s, ddy_t = _quad_st_derivatives(l, lf)
+        level = li[_LI_LEVEL, l]
+        r, g, b, a, _ = texture_stage.ewa_texel(
+            texels, table[level, 0] >> 2, table[level, 1], table[level, 2], level,
+            np.float32(lf[_LF_S, l]), np.float32(lf[_LF_T, l]), ddx_s, ddy_s, ddx_t, ddy_t,
+            table[0, 1], table[0, 2], sampler.wrap_s, sampler.wrap_t, ewa)
+        if r != r:
+            return False
+        lf[_LF_TEX, l] = np.float64(r)
+        lf[_LF_TEX + 1, l] = np.float64(g)
+        lf[_LF_TEX + 2, l] = np.float64(b)
+        lf[_LF_TEX + 3, l] = np.float64(a)
+        return True
+
+    return _aniso_lane
+
+
+_aniso_lane = _make_aniso_lane(sources_stamp(texture_stage))
 
 
 # ----------------------------------------------------------------------------- the lanes
