@@ -416,8 +416,9 @@ class _Builder:
                               f"(one of {', '.join(map(str, table))})")
             modes[key] = table[sampler[key]] if key in sampler else default
         decoded = self.image(texture["source"], f"textures[{index}].source")
+        if opaque or green_up:
+            decoded = decoded.copy()                  # (the decoded image is shared)
         if opaque:
-            decoded = decoded.copy()
             decoded[..., 3] = 255
         if green_up:
             decoded[..., 1] = 255 - decoded[..., 1]
