@@ -156,7 +156,7 @@ def test_mask_and_blend_soft_matches_gl(tmp_path):
     assert tuple(soft[128, 10]) == (128, 0, 128, 255)         # OPAQUE: alpha 0.1 ignored
 
 
-def normal_mapped_quad(tmp_path, green: int, name="bumpy.gltf", **info):
+def normal_mapped_quad(tmp_path, green: int, name="bumpy.gltf", tangents=None, normals=True, **info):
     """A lit quad facing the camera, its normalTexture the glTF tangent-space
     normal (0, +-0.6, 0.8) (green 204: up the image; 51: down) but for a red
     ramp in four middle columns (x tilts, so the map is not uniform), and a directional
@@ -175,8 +175,10 @@ def normal_mapped_quad(tmp_path, green: int, name="bumpy.gltf", **info):
     p, uv, t = make.quad(2, 2)
     light = g.node(name="sun", rotation=[-0.3826834, 0, 0, 0.9238795],
                    extensions={"KHR_lights_punctual": {"light": 0}})
-    g.scene(ortho_camera(g), light,
-            g.node(mesh=g.mesh(g.primitive(p, t, normals=np.tile([0.0, 0.0, 1.0], (4, 1)), uvs=uv, material=m))))
+    primitive = g.primitive(p, t, normals=np.tile([0.0, 0.0, 1.0], (4, 1)) if normals else None, uvs=uv, material=m)
+    if tangents is not None:
+        primitive["attributes"]["TANGENT"] = g.accessor(np.tile(np.asarray(tangents, np.float32), (4, 1)))
+    g.scene(ortho_camera(g), light, g.node(mesh=g.mesh(primitive)))
     return g.write(tmp_path / name)
 
 
@@ -192,6 +194,37 @@ def test_normal_texture_soft_matches_gl_and_green_points_up(tmp_path):
     lit_up, lit_down = soft_and_gl(up)[0], soft_and_gl(down)[0]
     centre = lit_up[64:192, 16:80, :3].astype(int).mean(), lit_down[64:192, 16:80, :3].astype(int).mean()
     assert centre[0] > centre[1] + 60, centre
+
+
+@pytest.mark.gl
+def test_normal_texture_takes_the_files_tangents(tmp_path):
+    """A TANGENT attribute gives the tangent frames, its handedness negated
+    (glTF's bitangent points up the image): the frame glTF implies for an
+    upright quad, (1, 0, 0, +1), is the one softras computes, (1, 0, 0, -1);
+    a frame turned a quarter in the plane, (0, -1, 0, +1) (u up the image),
+    moves the map's up-tilt onto x: the light from above no longer meets it,
+    and glref draws the same frames (strict). Without NORMAL the tangents are
+    ignored (glTF: flat normals get computed tangents)."""
+    computed = load_scene(str(normal_mapped_quad(tmp_path, 204, "plain.gltf")))
+    upright = load_scene(str(normal_mapped_quad(tmp_path, 204, "upright.gltf", tangents=[1, 0, 0, 1])))
+    turned = load_scene(str(normal_mapped_quad(tmp_path, 204, "turned.gltf", tangents=[0, -1, 0, 1])))
+    assert computed.draws[0].mesh.given_tangents is None
+    assert upright.draws[0].mesh.tangents.tolist() == [[1.0, 0.0, 0.0, -1.0]] * 4
+    assert np.allclose(computed.draws[0].mesh.tangents, upright.draws[0].mesh.tangents)
+    assert (soft_and_gl(upright)[0] == soft_and_gl(computed)[0]).all()
+    lit_upright, lit_turned = soft_and_gl(upright)[0], soft_and_gl(turned)[0]
+    centre = lit_upright[64:192, 16:80, :3].astype(int).mean(), lit_turned[64:192, 16:80, :3].astype(int).mean()
+    assert centre[0] > centre[1] + 20, centre
+    flat = load_scene(str(normal_mapped_quad(tmp_path, 204, "flat.gltf", tangents=[0, -1, 0, 1], normals=False)))
+    assert flat.draws[0].mesh.given_tangents is None
+
+
+@pytest.mark.parametrize("tangent, reason", [([1, 0, 0], r"TANGENT has 3 components, expected 4"),
+                                             ([float("nan"), 0, 0, 1], r"TANGENT of vertex 0 is not finite")])
+def test_bad_tangents_are_refused_with_the_place(tmp_path, tangent, reason):
+    path = normal_mapped_quad(tmp_path, 204, tangents=tangent)
+    with pytest.raises(SceneError, match=r"meshes\[0\]\.primitives\[0\]: " + reason):
+        load_scene(str(path))
 
 
 def test_normal_texture_scale_other_than_1_is_refused(tmp_path):

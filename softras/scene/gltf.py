@@ -36,6 +36,8 @@ glTF's TEXCOORD_0 has v = 0 at the top of the image, as the scene format.
 
 from __future__ import annotations
 
+import dataclasses
+
 import io
 import math
 import os
@@ -297,7 +299,8 @@ class _Builder:
             check_counts(vertices, triangles, budget[0], f"{place}: ")
             budget[0] -= triangles
             material, blend, cull, opaque = self.material(primitive.get("material"), place)
-            arrays = self.primitive_mesh(m, p, mirrored, opaque, material.shading != "unlit")
+            arrays = self.primitive_mesh(m, p, mirrored, opaque, material.shading != "unlit",
+                                         material.normal_map is not None)
             if arrays.uvs is None and (material.texture is not None or material.normal_map is not None):
                 what = "baseColorTexture" if material.texture is not None else "normalTexture"
                 raise BadFile(f"{place}: its material has a {what} but it has no TEXCOORD_0")
@@ -306,15 +309,21 @@ class _Builder:
                               depth_test="less", depth_write=True, cull=cull, blend=blend))
         return draws
 
-    def primitive_mesh(self, m: int, p: int, mirrored: bool, opaque: bool, lit: bool):
+    def primitive_mesh(self, m: int, p: int, mirrored: bool, opaque: bool, lit: bool, mapped: bool = False):
         """The scene Mesh of a primitive (cached): model space; a primitive
         without NORMAL drawn lit gets flat normals (each triangle its own
         three vertices with its face normal, as glTF asks); indices reversed
-        for a mirroring node; vertex alpha forced to 1 for OPAQUE materials."""
-        key = (m, p, mirrored, opaque, lit)
+        for a mirroring node; vertex alpha forced to 1 for OPAQUE materials;
+        ``mapped`` (a normal map): the file's TANGENT, where it has one and
+        NORMAL too (glTF ignores the tangents of flat normals), as
+        ``Mesh.given_tangents`` with the handedness negated: glTF's bitangent
+        points up the image, softras's down it (the normal map's green is
+        flipped to match, `texture`)."""
+        key = (m, p, mirrored, opaque, lit, mapped)
         if key not in self.meshes:
             where = f"meshes[{m}].primitives[{p}]"
             positions, indices, colors, normals, uvs = self.file.primitive(m, p)
+            given = self.file.primitive_tangents(m, p) if mapped and lit and normals is not None else None
             if lit and normals is None:
                 corners = indices.reshape(-1)
                 positions, colors, uvs = (None if a is None else a[corners] for a in (positions, colors, uvs))
@@ -330,10 +339,14 @@ class _Builder:
                 colors = colors.copy()
                 colors[:, 3] = 1.0
             try:
-                self.meshes[key] = meshfiles.checked_mesh(MeshArrays(positions, indices, colors, normals, uvs),
-                                                          meshes.MAX_TRIANGLES)
+                mesh = meshfiles.checked_mesh(MeshArrays(positions, indices, colors, normals, uvs),
+                                              meshes.MAX_TRIANGLES)
             except BadFile as error:
                 raise BadFile(f"{where}: {error}") from None
+            if given is not None:
+                frames = np.column_stack([given[:, :3], np.where(given[:, 3] < 0, 1.0, -1.0)])
+                mesh = dataclasses.replace(mesh, given_tangents=_readonly(frames))
+            self.meshes[key] = mesh
         return self.meshes[key]
 
     def material(self, index, where: str) -> tuple[Material, str, str, bool]:

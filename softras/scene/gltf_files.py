@@ -263,6 +263,24 @@ class GltfFile:
                 raise BadFile(f"{where}: {name} has {len(array)} entries for {len(positions)} positions")
         return Primitive(positions, flat.reshape(-1, 3), colors, normals, uvs)
 
+    def primitive_tangents(self, m: int, p: int) -> np.ndarray | None:
+        """TANGENT of meshes[m].primitives[p]: (N, 4) float64, xyz and the
+        handedness w, as the file gives them (glTF: the bitangent
+        ``w cross(N, T)`` points up the image); None without the attribute."""
+        where = f"meshes[{m}].primitives[{p}]"
+        attributes = self.primitive_entry(m, p, where)["attributes"]
+        if "TANGENT" not in attributes:
+            return None
+        tangents = self.floats(attributes["TANGENT"], where, (4,), "TANGENT")
+        count = len(self.floats(attributes["POSITION"], where, (3,), "POSITION"))
+        if len(tangents) != count:
+            raise BadFile(f"{where}: TANGENT has {len(tangents)} entries for {count} positions")
+        bad = ~np.isfinite(tangents).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise BadFile(f"{where}: TANGENT of vertex {i} is not finite")
+        return tangents
+
     # ----------------------------------------------------------------- nodes
 
     def walk(self, roots, where: str) -> list[tuple[int, np.ndarray]]:

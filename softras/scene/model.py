@@ -83,13 +83,19 @@ class Mesh:
     colors: np.ndarray | None  # (N, 4) float64 RGBA (RGB input gets alpha 1)
     normals: np.ndarray | None  # (N, 3) float64, model space
     uvs: np.ndarray | None     # (N, 2) float64, v = 0 at the image top
+    # (N, 4) float64 tangent frames a file gives (glTF's TANGENT, converted to
+    # softras's handedness), used instead of computed ones; None: computed.
+    given_tangents: np.ndarray | None = None
 
     @functools.cached_property
     def tangents(self) -> np.ndarray:
         """(N, 4) float64 per-vertex tangent frames for normal and bump mapping:
-        xyz = unit tangent along +s (model space, orthogonal to the normal),
-        w = handedness +-1 (`softras.scene.meshes.vertex_tangents`).  Computed once,
-        on first use, and read by both renderers."""
+        xyz = tangent along +s (model space), w = handedness +-1, the bitangent
+        ``w cross(N, T)`` along +t: ``given_tangents`` when the file gave
+        them, else `softras.scene.meshes.vertex_tangents` (unit, orthogonal to
+        the normal), computed once, on first use.  Read by both renderers."""
+        if self.given_tangents is not None:
+            return self.given_tangents
         return _readonly(meshes.vertex_tangents(self.positions, self.normals, self.uvs, self.indices))
 
 
