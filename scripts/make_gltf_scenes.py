@@ -238,6 +238,36 @@ def holes_texture(side: int = 16) -> np.ndarray:
     return pixels
 
 
+def dimples_normal_map(side: int = 64, cells: int = 4) -> np.ndarray:
+    """A glTF tangent-space normal map (+Y up the image, as glTF's
+    normalTexture): round dimples, ``cells`` x ``cells``, of a height field h,
+    n = normalize(-dh/dcol, +dh/drow, 1) (up the image is -row), rgb = (n + 1) / 2."""
+    y, x = np.mgrid[0:side, 0:side] + 0.5
+    cell = side / cells
+    fx, fy = (x % cell) / cell - 0.5, (y % cell) / cell - 0.5
+    r2 = fx * fx + fy * fy
+    h = np.where(r2 < 0.16, -(0.16 - r2) * 6.0, 0.0)                 # dimples, height in texels / cell
+    dcol = np.gradient(h, axis=1) * cells / 4
+    drow = np.gradient(h, axis=0) * cells / 4
+    n = np.stack([-dcol * side / cells, drow * side / cells, np.ones_like(h)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    pixels = np.empty((side, side, 4), np.uint8)
+    pixels[..., :3] = np.round((n + 1.0) * 127.5).astype(np.uint8)
+    pixels[..., 3] = 255
+    return pixels
+
+
+def gltf_tangents(positions, normals, uvs, triangles) -> np.ndarray:
+    """glTF TANGENT (xyz, w; the bitangent w cross(N, T) up the image) of a
+    mesh whose uvs run along its faces: softras's frames with w negated."""
+    from softras.scene.meshes import vertex_tangents
+
+    frames = vertex_tangents(np.asarray(positions, float), np.asarray(normals, float), np.asarray(uvs, float),
+                             np.asarray(triangles))
+    frames[:, 3] *= -1.0
+    return frames
+
+
 # --------------------------------------------------------------------------- the scenes
 
 
@@ -308,10 +338,35 @@ def hierarchy_framed() -> GltfWriter:
     return g
 
 
+def normal_mapped() -> GltfWriter:
+    """A lit box with a dimpled normalTexture and its TANGENTs, under a
+    KHR_lights_punctual directional light from the upper left."""
+    g = GltfWriter()
+    positions, normals, uvs, triangles = box()
+    g.doc["extensionsUsed"] = ["KHR_lights_punctual"]
+    g.doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 1.0,
+                                                               "color": [1.0, 0.95, 0.9]}]}}
+    dimples = g.texture(g.image(dimples_normal_map()), magFilter=9729, minFilter=9987)
+    material = g.add("materials", {"pbrMetallicRoughness": {"baseColorFactor": [0.75, 0.7, 0.65, 1],
+                                                             "metallicFactor": 0.0, "roughnessFactor": 0.45},
+                                   "normalTexture": {"index": dimples}})
+    primitive = g.primitive(positions, triangles, normals=normals, uvs=uvs, material=material)
+    tangents = gltf_tangents(positions, normals, uvs, np.asarray(triangles).reshape(-1, 3))
+    primitive["attributes"]["TANGENT"] = g.accessor(tangents.astype(np.float32))
+    camera = g.add("cameras", {"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.5, "zfar": 20,
+                                                                      "aspectRatio": 1.25}})
+    # the light travels along the node's -Z: turned to come from the upper left, in front
+    g.scene(g.node(name="camera", translation=[0, 0, 3.6], camera=camera),
+            g.node(name="sun", rotation=[-0.3, -0.25, 0.0, 0.92], extensions={"KHR_lights_punctual": {"light": 0}}),
+            g.node(name="box", mesh=g.mesh(primitive), rotation=[0.2, 0.35, 0.05, 0.913]))
+    return g
+
+
 def main() -> None:
     textured_box().write(SCENES / "gltf_textured_box.glb")
     alpha_modes().write(SCENES / "gltf_alpha_modes.gltf", external_bin="gltf_alpha_modes.bin")
     hierarchy_framed().write(SCENES / "gltf_hierarchy_framed.glb")
+    normal_mapped().write(SCENES / "gltf_normal_mapped.glb")
 
 
 if __name__ == "__main__":

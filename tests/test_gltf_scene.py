@@ -38,7 +38,8 @@ make = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(make)
 GltfWriter = make.GltfWriter
 
-CONFORMANCE = ["gltf_textured_box.glb", "gltf_alpha_modes.gltf", "gltf_hierarchy_framed.glb"]
+CONFORMANCE = ["gltf_textured_box.glb", "gltf_alpha_modes.gltf", "gltf_hierarchy_framed.glb",
+               "gltf_normal_mapped.glb"]
 UNLIT = {"KHR_materials_unlit": {}}
 
 
