@@ -261,12 +261,19 @@ def _make_ewa_kernel(key: str):
 
         level, s, t : (N,); s00, s01, s11 : (N,) the ellipse S_l in that level's
         texels (reconstruction filter included).  Adds nothing: writes out (N, 4)
-        float64 in [0, 255] and reads (N,) texels with weight > 0.
+        float64 in [0, 255] and reads (N,) texels with weight > 0; NaN and 0
+        reads where no texel gets weight or the ellipse is not finite
+        (infinite or NaN derivatives: `ewa_level` filters those bilinearly).
         """
         cache_key = key                     # noqa: F841  (in the cache key only)
         for k in range(len(s)):
             lvl = level[k]
             wl, hl, base = widths[lvl], heights[lvl], offsets[lvl]
+            reads[k] = 0
+            out[k, :] = np.nan
+            if not (np.isfinite(s00[k]) and np.isfinite(s01[k]) and np.isfinite(s11[k])
+                    and np.isfinite(s[k]) and np.isfinite(t[k])):
+                continue
             det = s00[k] * s11[k] - s01[k] * s01[k]
             m00, m01, m11 = s11[k] / det, -s01[k] / det, s00[k] / det      # S_l^-1
             cu = s[k] * wl - 0.5                                           # centre, level texels
@@ -289,9 +296,10 @@ def _make_ewa_kernel(key: str):
                             acc[c] += w * texel[c]
                         den += w
                         n_reads += 1
-            for c in range(4):
-                out[k, c] = acc[c] / den
-            reads[k] = n_reads
+            if den > 0.0:
+                for c in range(4):
+                    out[k, c] = acc[c] / den
+                reads[k] = n_reads
 
     return _ewa_kernel
 
@@ -300,7 +308,10 @@ _ewa_kernel = _make_ewa_kernel(sources_key([texture.__file__]))
 
 
 def ewa_level(tex: MipTexture, flat, S: np.ndarray, st: np.ndarray, level: np.ndarray):
-    """EWA on one level per sample: (N, 4) in [0, 255] and (N,) reads."""
+    """EWA on one level per sample: (N, 4) in [0, 255] and (N,) reads.  A
+    sample whose ellipse takes no texel (infinite or NaN derivatives) gets
+    the bilinear filter of its level at (s, t) instead, as llvmpipe's
+    anisotropic filter falls back to bilinear (`softras.kernels.texture._make_aniso_lane`)."""
     w0, h0 = tex.size
     su = flat.widths[level] / w0                  # level texels per level-0 texel
     sv = flat.heights[level] / h0
@@ -311,6 +322,11 @@ def ewa_level(tex: MipTexture, flat, S: np.ndarray, st: np.ndarray, level: np.nd
                 np.ascontiguousarray(st[:, 0]), np.ascontiguousarray(st[:, 1]),
                 S[:, 0, 0] * su * su + 1.0, S[:, 0, 1] * su * sv, S[:, 1, 1] * sv * sv + 1.0,
                 codes[tex.wrap_s], codes[tex.wrap_t], EWA_ALPHA, out, reads)
+    empty = np.flatnonzero(np.isnan(out[:, 0]))
+    for lvl in np.unique(level[empty]):
+        at = empty[level[empty] == lvl]
+        out[at] = texture.bilinear(tex.levels[lvl], np.nan_to_num(st[at, 0]), np.nan_to_num(st[at, 1]),
+                                   tex.wrap_s, tex.wrap_t)
     return out, reads
 
 
@@ -319,11 +335,11 @@ def sample_ewa(tex: MipTexture, st: np.ndarray, ddx: np.ndarray,
     """EWA filtering over the mip chain (see the module docstring).
     Returns ((N, 4) RGBA in [0, 1], (N,) texel reads)."""
     du, dv = texture.texel_derivatives(ddx, ddy, tex.size, gl=False)
-    S, minor = footprint_covariance(du, dv)
-    flat = texture.flatten_levels(tex.levels)
     last = len(tex.levels) - 1
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):    # (non-finite: ewa_level)
+        S, minor = footprint_covariance(du, dv)
         lam = np.clip(np.nan_to_num(np.log2(minor / EWA_MINOR_TEXELS), nan=0.0, neginf=0.0), 0, last)
+    flat = texture.flatten_levels(tex.levels)
     level0 = np.floor(lam).astype(np.int64)
     frac = lam - level0
     out, reads = ewa_level(tex, flat, S, st, level0)

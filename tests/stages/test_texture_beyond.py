@@ -194,3 +194,20 @@ def test_filter_costs_count_the_reads():
     assert all(r["seconds_per_million"] > 0 for r in rows)
     table = texture_beyond.format_costs(rows)
     assert table.count("\n") == len(rows) + 1 and "| nearest | gl | 1 | 1.0 |" in table
+
+
+@pytest.mark.parametrize("bad", [np.inf, np.nan])
+def test_ewa_footprint_with_no_texel_falls_back_to_bilinear(bad):
+    """Infinite or NaN derivatives give an ellipse that takes no texel (the
+    stage divided by a zero weight sum: ZeroDivisionError); the sample gets
+    its level's bilinear filter instead, with no EWA reads."""
+    rng = np.random.default_rng(3)
+    tex = _tex(rng.integers(0, 256, (16, 16, 4), dtype=np.uint8))
+    st = np.array([[0.3, 0.4], [0.55, 0.9]])
+    ddx = np.array([[bad, 0.0], [0.01, bad]])
+    out, reads = texture_beyond.sample_ewa(tex, st, ddx, ddx[:, ::-1].copy())
+    assert np.isfinite(out).all() and reads.tolist() == [0, 0]
+    expected = texels.bilinear(tex.levels[0], st[:, 0], st[:, 1], "repeat", "repeat") / 255.0
+    assert np.array_equal(out, expected)
+    fine, fine_reads = texture_beyond.sample_ewa(tex, st, np.full((2, 2), 0.01), np.full((2, 2), 0.01))
+    assert (fine_reads > 0).all() and np.isfinite(fine).all()
