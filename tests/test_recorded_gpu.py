@@ -38,9 +38,9 @@ NAMES = sorted(p.stem for p in SCENES.glob("*.json"))
 # scene -> (pixels outside, the largest excess /255), as recorded: the GPU's
 # picture leaves the bounds there (docs/verification.md, "On a GPU").
 KNOWN = {
-    # float32 clipping of vertices at 1e7: the far-plane edge of the ceiling 1.2 px lower.
+    # vertices at 1e7: the ceiling's far-plane edge 1.2 px lower (how the GPU clips: not established).
     "extreme_huge_coordinates": (4, 254.0),
-    # float32 interpolation along the horizon of a 1e6-wide floor: colours 1.5/255 off.
+    # the horizon of a floor 1e6 wide: colours 1.5/255 off (likely float32 interpolation).
     "huge_coordinates": (256, 1.0),
     # bump-mapped lighting: one pixel 1/255 beyond the envelope of the variants.
     "bump_mapped_plane": (1, 1.0),
