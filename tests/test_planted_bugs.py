@@ -6,7 +6,7 @@ script's child process (``GALLIUM_DRIVER=softpipe``: the driver is chosen
 when a context is created), and on an NVIDIA H200's pictures recorded in
 tests/recorded/nvidia_h200 (``scripts/planted_bugs.py --draw`` there; no
 GPU is needed to judge them). Every bug in every scene of the script's list
-(about 20 s once numba's kernels are cached), as ``python
+(about 30 s once numba's kernels are cached), as ``python
 scripts/planted_bugs.py`` does.
 """
 

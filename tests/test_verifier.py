@@ -216,8 +216,6 @@ def test_conformance_samples_where_the_gl_does(monkeypatch):
     """A GL that draws 8 samples (softras's "gl" pattern has only 1 and 4):
     conformance renders softras at the positions the GL reports, so a GL
     drawing there passes; a GL sampling elsewhere (Halton points) differs."""
-    import dataclasses
-
     scene = dataclasses.replace(softras.load_scene(SCENES / "msaa_fan.json"), samples=8)
     caps = CAPS_FAKE | {"max_texture_size": 4096, "sample_positions": {"8": NVIDIA_8X}}
     monkeypatch.setattr(conformance, "_gl_info", lambda: caps)
@@ -225,8 +223,8 @@ def test_conformance_samples_where_the_gl_does(monkeypatch):
     result = conformance.check_scene(scene, render_gl=lambda s: render_scene(s, pattern=at_gl), profile="spec")
     assert result.verdict == verifier.PASS, result.reasons
     assert result.figures["max_diff"] == 0
-    grid = conformance.check_scene(scene, render_gl=lambda s: render_scene(s, pattern="halton"), profile="spec")
-    assert grid.figures["max_diff"] > 0
+    elsewhere = conformance.check_scene(scene, render_gl=lambda s: render_scene(s, pattern="halton"), profile="spec")
+    assert elsewhere.figures["max_diff"] > 0
 
 
 # --------------------------------------------------------------------------- command line
