@@ -246,10 +246,8 @@ def dimples_normal_map(side: int = 64, cells: int = 4) -> np.ndarray:
     cell = side / cells
     fx, fy = (x % cell) / cell - 0.5, (y % cell) / cell - 0.5
     r2 = fx * fx + fy * fy
-    h = np.where(r2 < 0.16, -(0.16 - r2) * 6.0, 0.0)                 # dimples, height in texels / cell
-    dcol = np.gradient(h, axis=1) * cells / 4
-    drow = np.gradient(h, axis=0) * cells / 4
-    n = np.stack([-dcol * side / cells, drow * side / cells, np.ones_like(h)], axis=-1)
+    h = np.where(r2 < 0.16, -(0.16 - r2) * 6.0 * side / 4, 0.0)     # dimples, depth in texels
+    n = np.stack([-np.gradient(h, axis=1), np.gradient(h, axis=0), np.ones_like(h)], axis=-1)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     pixels = np.empty((side, side, 4), np.uint8)
     pixels[..., :3] = np.round((n + 1.0) * 127.5).astype(np.uint8)

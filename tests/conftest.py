@@ -8,7 +8,9 @@ section 9).  glref.context is the one place a context is created.
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +18,17 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "scenes"
+
+
+def load_script(name: str):
+    """scripts/<name>.py as a module, loaded once and registered in
+    sys.modules (its dataclasses look their module up there)."""
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, REPO / "scripts" / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
 
 # The tests check the compiled kernels against the stages, so a render must
 # not fall back to the stages while they compile in the background: compile

@@ -15,19 +15,16 @@ triangle; only determined pixels are compared.
 
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
 import pytest
 
 import softras
-from conftest import REPO, SCENES
+from conftest import REPO, SCENES, load_script
 from softras.pipeline import clip as clip_stage
 
-_spec = importlib.util.spec_from_file_location("make_extreme_scenes", REPO / "scripts" / "make_extreme_scenes.py")
-make = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(make)
+make = load_script("make_extreme_scenes")
 
 RENDERERS = {
     "gl": lambda scene: softras.render(scene, precision="gl"),

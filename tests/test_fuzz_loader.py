@@ -8,16 +8,13 @@ runs the long version (with a per-example alarm and a memory limit).
 
 from __future__ import annotations
 
-import importlib.util
 import os
 
 from hypothesis import HealthCheck, settings
 
-from conftest import REPO
+from conftest import REPO, load_script
 
-_spec = importlib.util.spec_from_file_location("fuzz_loader", REPO / "scripts" / "fuzz_loader.py")
-fuzz_loader = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(fuzz_loader)
+fuzz_loader = load_script("fuzz_loader")
 
 
 def test_mutated_scenes_load_or_raise_scene_error(tmp_path):

@@ -20,7 +20,6 @@ the file says.  The checks:
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import os
@@ -29,13 +28,12 @@ import numpy as np
 import pytest
 
 import softras
+from conftest import load_script
 from softras import cli
 from softras.scene import SceneError, gltf, load_scene, scene_files
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-_spec = importlib.util.spec_from_file_location("make_gltf_scenes", os.path.join(REPO, "scripts", "make_gltf_scenes.py"))
-make = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(make)
+make = load_script("make_gltf_scenes")
 GltfWriter = make.GltfWriter
 
 CONFORMANCE = ["gltf_textured_box.glb", "gltf_alpha_modes.gltf", "gltf_hierarchy_framed.glb",

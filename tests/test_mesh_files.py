@@ -21,7 +21,6 @@ checks:
 from __future__ import annotations
 
 import base64
-import importlib.util
 import json
 import os
 import statistics
@@ -36,11 +35,9 @@ import softras
 from softras import cli
 from softras.scene import SceneError, meshfiles, scene_from_dict
 
-from conftest import REPO
+from conftest import REPO, load_script
 
-_spec = importlib.util.spec_from_file_location("make_gltf_scenes", REPO / "scripts" / "make_gltf_scenes.py")
-make_gltf_scenes = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(make_gltf_scenes)
+make_gltf_scenes = load_script("make_gltf_scenes")
 
 # --------------------------------------------------------------------------- writers
 

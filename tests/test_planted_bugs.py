@@ -12,18 +12,12 @@ scripts/planted_bugs.py`` does.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-
 import numpy as np
 import pytest
 
-from conftest import REPO
+from conftest import REPO, load_script
 
-_spec = importlib.util.spec_from_file_location("planted_bugs", REPO / "scripts" / "planted_bugs.py")
-pb = importlib.util.module_from_spec(_spec)
-sys.modules.setdefault("planted_bugs", pb)
-_spec.loader.exec_module(pb)
+pb = load_script("planted_bugs")
 
 MUTATIONS = pb.MUTATIONS
 BUGS = [(m.name, scene) for m in MUTATIONS if not m.permitted for scene in m.scenes]

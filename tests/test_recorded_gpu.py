@@ -17,20 +17,14 @@ new difference, shows here.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-
 import pytest
 
 import softras
-from conftest import REPO, SCENES
+from conftest import REPO, SCENES, load_script
 from softras.renderer import render_scene
 from softras.verification import verifier
 
-_spec = importlib.util.spec_from_file_location("planted_bugs", REPO / "scripts" / "planted_bugs.py")
-pb = importlib.util.module_from_spec(_spec)
-sys.modules.setdefault("planted_bugs", pb)
-_spec.loader.exec_module(pb)
+pb = load_script("planted_bugs")
 
 RECORDED = REPO / "tests" / "recorded" / "nvidia_h200"
 NAMES = sorted(p.stem for p in SCENES.glob("*.json"))

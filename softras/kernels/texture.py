@@ -205,8 +205,6 @@ def _filter_level(texels, base, lw, lh, s, t, linear, wrap_s, wrap_t):
                             np.float64(texels[at01 + 3]), np.float64(texels[at11 + 3])))
 
 
-
-
 @numba.njit(cache=True, inline="always")
 def _lerp_lanes(w, a, b):
     """`softras.pipeline.texture.lerp8` (``_lerp8(w, a, b) = a + ((w (b - a) +

@@ -87,7 +87,7 @@ def _make_ripmap_lane(sources: str):
             n_u = sampler.ripmap
             n_v = sampler.levels // n_u
             lu, lv = _ripmap_level(lam_u, n_u), _ripmap_level(lam_v, n_v)
-            if sampler.mip == 1:                            # the nearest level along each axis
+            if sampler.mip == 1:                            # the nearest level along each axis: weights 1, 0, 0, 0
                 i0 = i1 = np.int64(min(max(np.ceil(lu - 0.5), 0.0), float(n_u - 1)))
                 j0 = j1 = np.int64(min(max(np.ceil(lv - 0.5), 0.0), float(n_v - 1)))
                 fu = fv = 0.0
@@ -102,8 +102,6 @@ def _make_ripmap_lane(sources: str):
                 i = i1 if k & 1 else i0
                 j = j1 if k & 2 else j0
                 weight = (fu if k & 1 else 1 - fu) * (fv if k & 2 else 1 - fv)
-                if sampler.mip == 1:
-                    weight = 1.0 if k == 0 else 0.0
                 if weight > 0:
                     row = j * n_u + i
                     cr, cg, cb, ca = _filter_level(texels, table[row, 0], table[row, 1], table[row, 2], s, t, True,

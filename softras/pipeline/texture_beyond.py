@@ -311,7 +311,8 @@ def ewa_level(tex: MipTexture, flat, S: np.ndarray, st: np.ndarray, level: np.nd
     """EWA on one level per sample: (N, 4) in [0, 255] and (N,) reads.  A
     sample whose ellipse takes no texel (infinite or NaN derivatives) gets
     the bilinear filter of its level at (s, t) instead, as llvmpipe's
-    anisotropic filter falls back to bilinear (`softras.kernels.texture._make_aniso_lane`)."""
+    anisotropic filter falls back to bilinear
+    (`softras.pipeline.texture.sample_anisotropic_llvmpipe`)."""
     w0, h0 = tex.size
     su = flat.widths[level] / w0                  # level texels per level-0 texel
     sv = flat.heights[level] / h0

@@ -272,7 +272,7 @@ class GltfFile:
         if "TANGENT" not in attributes:
             return None
         tangents = self.floats(attributes["TANGENT"], where, (4,), "TANGENT")
-        count = len(self.floats(attributes["POSITION"], where, (3,), "POSITION"))
+        count = self.accessor_count(attributes["POSITION"], where)
         if len(tangents) != count:
             raise BadFile(f"{where}: TANGENT has {len(tangents)} entries for {count} positions")
         bad = ~np.isfinite(tangents).all(axis=1)
