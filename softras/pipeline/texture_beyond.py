@@ -34,7 +34,9 @@ EWA (Heckbert 1989, elliptical weighted average)
     mean.  The level is chosen so that the minor semi-axis spans about
     ``EWA_MINOR_TEXELS`` texels (lambda = log2(b / 2)), and the two levels
     around lambda are blended like trilinear.  Eccentricity is capped at
-    ``EWA_MAX_ECCENTRICITY`` (the minor axis grown) to bound the cost.
+    ``EWA_MAX_ECCENTRICITY`` (the minor axis grown) to bound the cost, and
+    so is the size: a footprint wider than the last level takes is shrunk
+    to a minor semi-axis of ``2 EWA_MINOR_TEXELS`` of its texels.
 """
 
 from __future__ import annotations
@@ -250,56 +252,80 @@ def footprint_covariance(du: np.ndarray, dv: np.ndarray, max_eccentricity: float
     return S, np.sqrt(np.maximum(minor2, wanted))
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def ewa_ellipse(texels, base, wl, hl, s, t, s00, s01, s11, wrap_s, wrap_t, alpha):
+    """Gaussian-weighted mean of one level's texels inside one ellipse.
+
+    texels : the levels' RGBA8 bytes (N,) uint8, this level's first at byte
+    ``base``, wl x hl texels; (s, t) the sample, (s00, s01, s11) the ellipse
+    S_l in this level's texels (reconstruction filter included); wrap_s,
+    wrap_t : WRAP_CODES.  Returns (r, g, b, a, reads): the mean on the 0..255
+    scale and the texels with weight > 0, or NaN and 0 where no texel gets
+    weight or the ellipse or (s, t) is not finite (infinite or NaN
+    derivatives: `ewa_level` filters those bilinearly).  Shared by the stage
+    (`_ewa_kernel`) and the compiled paths
+    (`softras.kernels.texture_beyond._ewa_level`).
+    """
+    if not (np.isfinite(s00) and np.isfinite(s01) and np.isfinite(s11) and np.isfinite(s) and np.isfinite(t)):
+        return np.nan, np.nan, np.nan, np.nan, 0
+    det = s00 * s11 - s01 * s01
+    m00, m01, m11 = s11 / det, -s01 / det, s00 / det              # S_l^-1
+    cu = s * wl - 0.5                                             # centre, level texels
+    cv = t * hl - 0.5
+    hu, hv = np.sqrt(s00), np.sqrt(s11)                           # bounding box half sizes
+    r = g = b = a = den = 0.0
+    reads = 0
+    i_first, i_last = int(np.floor(cu - hu)), int(np.ceil(cu + hu))
+    for j in range(int(np.floor(cv - hv)), int(np.ceil(cv + hv)) + 1):
+        dv = j - cv
+        jj = texture.wrap_index(j, hl, wrap_t)
+        # The row's span of the ellipse (q(du) = 1 solved for du), one texel
+        # wider each side, within the bounding box: every texel with q < 1 is
+        # visited, in the same order, and the span skips the box's corners
+        # (most of the box when the ellipse is long and turned).
+        mid = -m01 * dv / m00
+        half = np.sqrt(max(mid * mid - (m11 * dv * dv - 1.0) / m00, 0.0))
+        for i in range(max(i_first, int(np.floor(cu + mid - half)) - 1),
+                       min(i_last, int(np.ceil(cu + mid + half)) + 1) + 1):
+            du = i - cu
+            q = m00 * du * du + 2.0 * m01 * du * dv + m11 * dv * dv
+            if q < 1.0:
+                ii = texture.wrap_index(i, wl, wrap_s)
+                w = np.exp(-alpha * q)
+                at = base + (jj * wl + ii) * 4
+                r += w * texels[at]
+                g += w * texels[at + 1]
+                b += w * texels[at + 2]
+                a += w * texels[at + 3]
+                den += w
+                reads += 1
+    if not den > 0.0:
+        return np.nan, np.nan, np.nan, np.nan, 0
+    return r / den, g / den, b / den, a / den, reads
+
+
 def _make_ewa_kernel(key: str):
     """`_ewa_kernel`, cached under ``key`` (`softras.pipeline.cache_key`): it
-    inlines `softras.pipeline.texture.wrap_index`."""
+    inlines `softras.pipeline.texture.wrap_index` (and this module's
+    `ewa_ellipse`, which numba's own check of this file covers)."""
 
-    @numba.njit(cache=True)
+    @numba.njit(cache=True, error_model="numpy")
     def _ewa_kernel(texels, offsets, widths, heights, level, s, t, s00, s01, s11, wrap_s, wrap_t,
                     alpha, out, reads):
-        """Gaussian-weighted mean over one level's texels inside each ellipse.
+        """`ewa_ellipse` of each sample on its level.
 
-        level, s, t : (N,); s00, s01, s11 : (N,) the ellipse S_l in that level's
-        texels (reconstruction filter included).  Adds nothing: writes out (N, 4)
-        float64 in [0, 255] and reads (N,) texels with weight > 0; NaN and 0
-        reads where no texel gets weight or the ellipse is not finite
-        (infinite or NaN derivatives: `ewa_level` filters those bilinearly).
+        texels : the levels' bytes (N,) uint8, offsets (L,) each level's first
+        texel; level, s, t : (N,); s00, s01, s11 : (N,) the ellipse S_l in
+        that level's texels (reconstruction filter included).  Writes out
+        (N, 4) float64 in [0, 255] and reads (N,) texels with weight > 0; NaN
+        and 0 where `ewa_ellipse` takes no texel.
         """
         cache_key = key                     # noqa: F841  (in the cache key only)
         for k in range(len(s)):
             lvl = level[k]
-            wl, hl, base = widths[lvl], heights[lvl], offsets[lvl]
-            reads[k] = 0
-            out[k, :] = np.nan
-            if not (np.isfinite(s00[k]) and np.isfinite(s01[k]) and np.isfinite(s11[k])
-                    and np.isfinite(s[k]) and np.isfinite(t[k])):
-                continue
-            det = s00[k] * s11[k] - s01[k] * s01[k]
-            m00, m01, m11 = s11[k] / det, -s01[k] / det, s00[k] / det      # S_l^-1
-            cu = s[k] * wl - 0.5                                           # centre, level texels
-            cv = t[k] * hl - 0.5
-            hu, hv = np.sqrt(s00[k]), np.sqrt(s11[k])                      # bounding box half sizes
-            acc = np.zeros(4)
-            den = 0.0
-            n_reads = 0
-            for j in range(int(np.floor(cv - hv)), int(np.ceil(cv + hv)) + 1):
-                dv = j - cv
-                jj = texture.wrap_index(j, hl, wrap_t)
-                for i in range(int(np.floor(cu - hu)), int(np.ceil(cu + hu)) + 1):
-                    du = i - cu
-                    q = m00 * du * du + 2.0 * m01 * du * dv + m11 * dv * dv
-                    if q < 1.0:
-                        ii = texture.wrap_index(i, wl, wrap_s)
-                        w = np.exp(-alpha * q)
-                        texel = texels[base + jj * wl + ii]
-                        for c in range(4):
-                            acc[c] += w * texel[c]
-                        den += w
-                        n_reads += 1
-            if den > 0.0:
-                for c in range(4):
-                    out[k, c] = acc[c] / den
-                reads[k] = n_reads
+            out[k, 0], out[k, 1], out[k, 2], out[k, 3], reads[k] = ewa_ellipse(
+                texels, 4 * offsets[lvl], widths[lvl], heights[lvl], s[k], t[k], s00[k], s01[k], s11[k],
+                wrap_s, wrap_t, alpha)
 
     return _ewa_kernel
 
@@ -319,7 +345,7 @@ def ewa_level(tex: MipTexture, flat, S: np.ndarray, st: np.ndarray, level: np.nd
     out = np.empty((len(st), 4))
     reads = np.zeros(len(st), np.int64)
     codes = texture.WRAP_CODES
-    _ewa_kernel(flat.texels, flat.offsets, flat.widths, flat.heights, level,
+    _ewa_kernel(flat.texels.reshape(-1), flat.offsets, flat.widths, flat.heights, level,
                 np.ascontiguousarray(st[:, 0]), np.ascontiguousarray(st[:, 1]),
                 S[:, 0, 0] * su * su + 1.0, S[:, 0, 1] * su * sv, S[:, 1, 1] * sv * sv + 1.0,
                 codes[tex.wrap_s], codes[tex.wrap_t], EWA_ALPHA, out, reads)
@@ -339,7 +365,14 @@ def sample_ewa(tex: MipTexture, st: np.ndarray, ddx: np.ndarray,
     last = len(tex.levels) - 1
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):    # (non-finite: ewa_level)
         S, minor = footprint_covariance(du, dv)
-        lam = np.clip(np.nan_to_num(np.log2(minor / EWA_MINOR_TEXELS), nan=0.0, neginf=0.0), 0, last)
+        lam = np.clip(np.nan_to_num(libm.log2(minor / EWA_MINOR_TEXELS), nan=0.0, neginf=0.0), 0, last)
+        # A footprint wider than the last level takes (a minor semi-axis of
+        # over 2 EWA_MINOR_TEXELS of its texels, where lambda was clipped) is
+        # shrunk to that, its shape kept: the cost stays bounded (a
+        # near-singular view gave ellipses of 1e9 texels) and on a 1 x 1 last
+        # level the value is its texel either way.
+        widest = 2 * EWA_MINOR_TEXELS * float(1 << last)
+        S = S * np.where(minor > widest, (widest / minor) ** 2, 1.0)[:, None, None]
     flat = texture.flatten_levels(tex.levels)
     level0 = np.floor(lam).astype(np.int64)
     frac = lam - level0

@@ -93,6 +93,21 @@ def test_footprint_covariance_by_hand():
     assert minor[0] == pytest.approx(4)
 
 
+def test_a_footprint_wider_than_the_last_level_is_shrunk():
+    """EWA shrinks a footprint wider than the last level takes to a minor
+    semi-axis of 2 EWA_MINOR_TEXELS of its texels (a near-singular view gave
+    ellipses of 1e9 texels, and the loop never ended): a circle of radius
+    1000 texels on a 32² texture reads at most pi 5² texels of its 1 x 1
+    last level (not pi 31²) and gives that texel."""
+    rng = np.random.default_rng(3)
+    tex = _tex(rng.integers(0, 256, (32, 32, 4)).astype(np.uint8))
+    d = 1000.0 / 32                                   # (s, t) units: 1000 texels
+    out, reads = texture_beyond.sample_ewa(tex, np.array([[0.3, 0.6]]), np.array([[d, 0.0]]),
+                                           np.array([[0.0, d]]))
+    assert 1 <= reads[0] <= np.pi * 5 ** 2
+    np.testing.assert_allclose(out[0] * 255, tex.levels[-1][0, 0], atol=1e-9)
+
+
 def test_ewa_of_a_constant_is_the_constant():
     level0 = np.full((32, 32, 4), 200, np.uint8)
     rng = np.random.default_rng(7)
