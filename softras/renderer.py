@@ -56,8 +56,7 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     # A new option must either send scenes that use it past this test or be
     # implemented there.
     fast = (fast_path and job.rgba8 and texture_bounds is None and tie_rule == "left_bottom"
-            and kernels.unsupported(scene, precision=precision, clipping=clipping,
-                                    texture_filter=texture_filter) is None)
+            and kernels.unsupported(scene, precision=precision, clipping=clipping) is None)
     if fast:
         # Unless the kernels are ready (or compiled now), a background process
         # compiles them and the stages draw this scene (`softras.kernels.prepare`).

@@ -22,7 +22,7 @@ import pytest
 import softras
 from softras.kernels import exact, exact_lines
 from softras.pipeline import render as stages
-from softras.pipeline import sampling
+from softras.pipeline import sampling, texture_beyond
 from softras.renderer import render_scene
 from test_fastpath import lit_scene, mapped_scene, random_line_scene, random_scene
 
@@ -128,12 +128,27 @@ def test_any_sample_count_and_pattern_gives_the_stages_samples(samples, pattern)
 
 @pytest.mark.parametrize("options", [{"tie_rule": "right_top"}, {"clipping": "llvmpipe"},
                                      {"framebuffer": "rgba32f"}, {"resolve_filter": "tent", "samples": 4},
-                                     {"texture_bounds": "lo"}, {"texture_filter": "ewa"}])
+                                     {"texture_bounds": "lo"}, {"texture_filter": "ewa"},
+                                     {"texture_filter": "ripmap"}, {"texture_filter": "level0"}])
 def test_every_exact_option_gives_the_stages_samples(options):
     data = random_scene(7, textured=True)
     data["nodes"] += random_scene(8)["nodes"]
     data["front_face"] = "cw"
     assert_same_samples(softras.load_scene(data), f"options {options}", **options)
+
+
+@pytest.mark.parametrize("name", texture_beyond.FILTERS)
+def test_every_texture_filter_on_stretched_uvs_gives_the_stages_samples(name):
+    """softras's filters in the exact kernel (`softras.kernels.texture_beyond._beyond_texel`
+    at the analytic derivatives) on uvs scaled up to 20x along one axis: the
+    ripmap's and EWA's levels, EWA's eccentricity cap and level blend;
+    anisotropic textures too (a ``texture_filter`` ignores max_anisotropy)."""
+    data = random_scene(9, textured=True)
+    for k, node in enumerate(data["nodes"]):
+        node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
+    for k, tex in enumerate(data["textures"].values()):
+        tex["max_anisotropy"] = [1, 8][k % 2]
+    assert_same_samples(softras.load_scene(data), f"texture_filter {name}", samples=4, texture_filter=name)
 
 
 @pytest.mark.parametrize("band_rows", [1, 3, 1000])
@@ -161,11 +176,12 @@ def routes(monkeypatch) -> list:
     return drawn
 
 
-@pytest.mark.parametrize("options", [{}, {"texture_filter": "ewa"}, {"texture_bounds": "hi"}, {"anisotropy": 4}])
+@pytest.mark.parametrize("options", [{}, {"texture_filter": "ewa"}, {"texture_bounds": "hi"}, {"anisotropy": 4},
+                                     {"texture_filter": "ripmap", "anisotropy": 4}])
 def test_which_draws_take_the_kernel(options, monkeypatch):
-    """Lines take the exact line kernel; anisotropic filtering, the filters
-    beyond GL's and texture bounds the stages' per-draw functions; the
-    rest, textured or not, the kernel."""
+    """Lines take the exact line kernel; textured draws under texture bounds
+    the stages' per-draw functions; the rest, textured or not, with any
+    filter (anisotropic, softras's own), the kernel."""
     data = random_line_scene(3)
     textured = random_scene(5, textured=True)
     data["nodes"] += textured["nodes"][:2]
@@ -176,7 +192,7 @@ def test_which_draws_take_the_kernel(options, monkeypatch):
     job = exact_job(scene, **{k: v for k, v in options.items() if k != "anisotropy"})
     drawn = routes(monkeypatch)
     exact.render_samples(scene, job)
-    textures_compiled = not options
+    textures_compiled = "texture_bounds" not in options
     expected = ["lines" if d.mesh.primitive == "lines" else
                 "stages" if d.material.texture and not textures_compiled else "kernel"
                 for d in softras.scene.ordered_draws(scene)]
@@ -187,21 +203,48 @@ def test_which_draws_take_the_kernel(options, monkeypatch):
 @pytest.mark.parametrize("options", [{}, {"texture_bounds": "hi"}, {"anisotropy": 4}])
 @pytest.mark.parametrize("map_key", ["bump_map", "normal_map"])
 def test_normal_and_bump_mapped_draws_take_the_kernel(map_key, options, monkeypatch):
-    """A mapped draw takes the kernel, unless its map is filtered
-    anisotropically or the render asks for texture bounds (the stages)."""
-    import json
-    data = json.loads((Path(__file__).resolve().parents[1] / "scenes" / "bump_mapped_plane.json").read_text())
-    material = data["nodes"][0]["material"]
-    material[map_key] = material.pop("bump_map")
-    if map_key == "normal_map":
-        del material["bump_scale"]
+    """A mapped draw takes the kernel, its map filtered anisotropically too,
+    unless the render asks for texture bounds (the stages)."""
+    data = mapped_plane(map_key)
     for tex in data["textures"].values():
         tex["max_anisotropy"] = options.get("anisotropy", 1)
     data["nodes"].append(dict(data["nodes"][0], name="plain", material={"shading": "phong"}))
     scene = softras.load_scene(data)
     drawn = routes(monkeypatch)
     exact.render_samples(scene, exact_job(scene, **{k: v for k, v in options.items() if k != "anisotropy"}))
-    assert drawn == ["stages" if options else "kernel", "kernel"]
+    assert drawn == ["stages" if "texture_bounds" in options else "kernel", "kernel"]
+
+
+@pytest.mark.parametrize("anisotropy", [1.5, 4, 16])
+@pytest.mark.parametrize("map_key", [None, "bump_map", "normal_map"])
+def test_anisotropic_filtering_gives_the_stages_samples(anisotropy, map_key):
+    """The EXT spec's probes in the exact kernel (`exact._anisotropic`: the
+    probe count min(ceil(Pmax / Pmin), floor(limit)), lambda' = log2(Pmax /
+    N), the probes along the longer derivative vector) give the stages'
+    samples (`softras.pipeline.texture.sample_anisotropic`): every min
+    filter on uvs stretched up to 20x along one axis, a limit below 2 (one
+    probe at the longer axis' lambda); a normal or bump map (the bump-mapped
+    plane in perspective) filtered so too."""
+    if map_key is None:
+        data = random_scene(11, textured=True)
+        for k, node in enumerate(data["nodes"]):
+            node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
+    else:
+        data = mapped_plane(map_key)
+    for tex in data["textures"].values():
+        tex["max_anisotropy"] = anisotropy
+    assert_same_samples(softras.load_scene(data), f"anisotropy {anisotropy} {map_key}", samples=4)
+
+
+def mapped_plane(map_key: str) -> dict:
+    """scenes/bump_mapped_plane.json with its map as ``map_key`` ("bump_map" or "normal_map")."""
+    import json
+    data = json.loads((Path(__file__).resolve().parents[1] / "scenes" / "bump_mapped_plane.json").read_text())
+    material = data["nodes"][0]["material"]
+    material[map_key] = material.pop("bump_map")
+    if map_key == "normal_map":
+        del material["bump_scale"]
+    return data
 
 
 def test_gl_precision_is_refused():

@@ -28,7 +28,7 @@ from softras.kernels import rasterize as k_rasterize
 from softras.kernels import rgba8 as k_rgba8
 from softras.kernels import setup as k_setup
 from softras.kernels import texture as k_texture
-from softras.pipeline import fragment, sampling, vertex
+from softras.pipeline import fragment, sampling, texture_beyond, vertex
 from softras.renderer import render_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
@@ -473,28 +473,25 @@ def test_random_textured_scenes_are_bit_identical(seed, fixed_point):
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("samples", [1, 4])
-def test_random_ripmap_scenes_are_bit_identical(seed, samples):
-    """The ripmap filter (``texture_filter="ripmap"``, `softras.kernels.texture_beyond._ripmap_lane`)
-    on the compiled path gives the stages' bytes
-    (`softras.pipeline.texture_beyond.sample_ripmap`): every min filter
-    (mipmap_nearest: the nearest level; the others: four levels blended),
-    both mag filters, every wrap, odd sizes, uv up to +-60 (minified along
-    one axis, magnified along the other); even seeds name the textures one
+@pytest.mark.parametrize("name", texture_beyond.FILTERS)
+def test_random_beyond_filter_scenes_are_bit_identical(name, seed, samples):
+    """softras's own filters (``texture_filter`` "ripmap", "ewa", "level0",
+    `softras.kernels.texture_beyond._beyond_lane`) on the compiled path give
+    the stages' bytes (`softras.pipeline.texture_beyond.sample_beyond`):
+    every min filter (the ripmap's mipmap_nearest: the nearest level; the
+    others: four levels blended), both mag filters, every wrap, odd sizes,
+    uv up to +-60 (minified along one axis, magnified along the other: EWA's
+    eccentricity cap, its levels and their blend, its empty ellipses on
+    the degenerate and w ~ 0 triangles); even seeds name the textures one
     by one, some left to their own filter."""
     data = random_scene(300 + seed, textured=True)
     for k, node in enumerate(data["nodes"]):
         node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
     scene = softras.load_scene(data)
-    option = "ripmap" if seed % 2 else {name: ["ripmap", None][k % 2] for k, name in enumerate(sorted(scene.textures))}
-    assert fastpath.unsupported(scene, precision="gl", clipping=None, texture_filter=option) is None
+    option = name if seed % 2 else {texture: [name, None][k % 2] for k, texture in enumerate(sorted(scene.textures))}
+    assert fastpath.unsupported(scene, precision="gl", clipping=None) is None
     assert_same(*both_paths(scene, samples=samples, texture_filter=option),
-                f"random ripmap scene seed {300 + seed}, {samples} samples")
-
-
-def test_ewa_and_level0_take_the_stages():
-    scene = softras.load_scene(random_scene(300, textured=True))
-    for name in ("ewa", "level0"):
-        assert "texture_filter" in fastpath.unsupported(scene, precision="gl", clipping=None, texture_filter=name)
+                f"random {name} scene seed {300 + seed}, {samples} samples")
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -641,7 +638,7 @@ def test_quad_lod_equals_choose_levels():
     for mip, min_filter in ((0, "linear"), (1, "linear_mipmap_nearest"), (2, "linear_mipmap_linear")):
         width, height, n_levels = 64, 16, 7
         sampler = k_texture.Sampler(min_filter=1, mag_filter=0, mip=mip, wrap_s=0, wrap_t=0, fixed8=1,
-                                    levels=n_levels, vectorised=0, aniso=0, ripmap=0)
+                                    levels=n_levels, vectorised=0, aniso=0, ripmap=0, beyond=0)
         with np.errstate(all="ignore"):
             du = d[:, :2] * np.float32([width, height])
             dv = d[:, 2:] * np.float32([width, height])

@@ -237,25 +237,32 @@ def test_an_unknown_mode_is_refused(monkeypatch):
 def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     """numba's cache checks only a kernel's own file: the tile drivers' key
     (`softras.kernels.draw._SOURCES`) must change with pipeline/ops.py,
-    pipeline/texture.py and pipeline/rasterize.py, whose kernels they
-    inline, and pipeline/libm.py (the Phong kernels' pow), the line
+    pipeline/texture.py, pipeline/rasterize.py and pipeline/texture_beyond.py,
+    whose kernels they inline (the last through softras's filters,
+    `softras.kernels.texture_beyond._beyond_texel`, keyed so too), and
+    pipeline/libm.py (the Phong kernels' pow), the line
     kernel's with pipeline/lines.py, ops.py and rasterize.py, and the exact
     kernel's with pipeline/rasterize.py, pipeline/ops.py,
-    pipeline/texture.py and pipeline/libm.py, and Gouraud's and flat
+    pipeline/texture.py, pipeline/libm.py and pipeline/texture_beyond.py, and Gouraud's and flat
     shading's lighting loops' with pipeline/libm.py
     (`softras.kernels.stamp.sources_stamp`)."""
     from softras.kernels import exact as k_exact
     from softras.kernels import light as k_light
     from softras.kernels import lines as k_lines
     from softras.kernels import stamp
-    from softras.pipeline import libm, ops, rasterize
+    from softras.kernels import texture_beyond as k_beyond
+    from softras.pipeline import libm, ops, rasterize, texture_beyond
 
-    line_key = [cell.cell_contents for cell in k_lines._DRAW_LINES.py_func.__closure__]
-    exact_key = [cell.cell_contents for cell in k_exact._DRAW.py_func.__closure__]
-    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize, libm)
+    def key(kernel):
+        return [cell.cell_contents for cell in kernel.py_func.__closure__]
+
+    line_key = key(k_lines._DRAW_LINES)
+    exact_key = key(k_exact._DRAW)
+    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize, libm, texture_beyond)
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize, clip_stage)]
-    assert exact_key == [stamp.sources_stamp(rasterize, ops, texture, libm)]
-    assert [cell.cell_contents for cell in k_exact._TEXELS.py_func.__closure__] == exact_key
+    assert exact_key == [stamp.sources_stamp(rasterize, ops, texture, libm, texture_beyond)]
+    assert key(k_exact._TEXELS) == key(k_exact._ANISOTROPIC) == exact_key
+    assert key(k_beyond._beyond_texel) == [stamp.sources_stamp(texture, libm, texture_beyond)]
     for loop in (k_light._vertex_lighting, k_light._face_lighting):
         assert [cell.cell_contents for cell in loop.py_func.__closure__] == [stamp.sources_stamp(libm)]
     from softras.pipeline import cache_key
@@ -266,6 +273,7 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
                             (rasterize, (ops, texture, rasterize)), (lines, (lines, ops, rasterize)),
                             (clip_stage, (lines, ops, rasterize, clip_stage)),
                             (libm, (ops, texture, rasterize, libm)),
+                            (texture_beyond, (ops, texture, rasterize, libm, texture_beyond)),
                             (k_lines, ()), (k_light, ())):
         before = stamp.sources_stamp(*modules)
         edited = Path(module.__file__)

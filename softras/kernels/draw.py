@@ -40,7 +40,8 @@ into the same byte framebuffer).
 `unsupported(scene, ...)` says why a scene must take the general path (lit
 or textured lines, other precisions or clipping policies...).  Every
 shading model is drawn here, at any sample count and positions, with every
-texture filter GL has (anisotropic included), normal and bump maps (on the
+texture filter GL has (anisotropic included) and softras's own
+(``texture_filter``: `softras.kernels.texture_beyond`), normal and bump maps (on the
 textured driver, `softras.kernels.maps._map_normals`) and the alpha test.
 Gouraud and flat shading are lit before the tile kernels, by compiled
 loops with the stages' operations (`softras.kernels.light.base_colors`,
@@ -88,7 +89,7 @@ from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
                                      _lanes_bilinear_fixed, _lanes_lod, _quad_levels, _sample_lane,
                                      texture_tables)
-from softras.kernels.texture_beyond import _ripmap_lane, ripmap_tables
+from softras.kernels.texture_beyond import _beyond_lane, beyond_tables
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import libm, ops, rasterize, sampling, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _sample_box
@@ -123,19 +124,16 @@ NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
 # ----------------------------------------------------------------------------- dispatch
 
 
-def unsupported(scene: Scene, *, precision: str, clipping: str | None, texture_filter=None) -> str | None:
+def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | None:
     """Why ``scene`` must take the general pipeline, or None when this path
     renders it.  The caller (`softras.renderer.render_scene`) has already
     checked the options this path does not look at (RGBA8 framebuffer,
-    texture bounds, tie rule).  Of the ``texture_filter``s this path draws
-    "ripmap" (`softras.kernels.texture_beyond._ripmap_lane`)."""
+    texture bounds, tie rule); every ``texture_filter`` is drawn here
+    (`softras.kernels.texture_beyond._beyond_lane`)."""
     if precision != "gl":
         return "precision is not gl"
     if clipping not in (None, "llvmpipe"):
         return f"clipping {clipping!r}"
-    for name in scene.textures:
-        if (beyond := texture_beyond.filter_for(texture_filter, name)) not in (None, "ripmap"):
-            return f"texture {name!r}: texture_filter {beyond!r}"
     for draw in scene.draws:
         material = draw.material
         if draw.mesh.primitive == "lines":
@@ -166,8 +164,9 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     byte k where the general pipeline stores the float k/255.  reuse: the
     buffer is this thread's scratch colour buffer, overwritten by the next
     call (for a caller that copies it at once; saves the page faults of a
-    fresh buffer; one pass only).  texture_filter: None, or "ripmap" for
-    some or all textures (`unsupported`).
+    fresh buffer; one pass only).  texture_filter: None, or one of
+    softras's filters for some or all textures
+    (`softras.pipeline.texture_beyond.FILTERS`).
     """
     check_sample_memory(scene, len(positions), SAMPLE_BYTES)
 
@@ -236,7 +235,8 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
     sampler, texels = NO_TEXTURE
     if material.texture is not None:
         tex = texture.prepare(scene.textures[material.texture])
-        sampler, texels = (ripmap_tables(tex) if texture_beyond.filter_for(texture_filter, tex.name) == "ripmap"
+        beyond = texture_beyond.filter_for(texture_filter, tex.name)
+        sampler, texels = (beyond_tables(tex, beyond) if beyond is not None
                            else texture_tables(tex, texture_fixed_point))
     map_sampler, map_texels = (texture_tables(texture.prepare(scene.textures[map_name]), texture_fixed_point)
                                if map_name is not None else NO_TEXTURE)
@@ -482,7 +482,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             # The level of detail of every quad (before the depth test), kept on the
             # quad's first lane; whether a quad samples two levels.
             any_two = False
-            if not state.texture or sampler.ripmap:       # (a ripmap chooses its levels per lane)
+            if not state.texture or sampler.beyond:       # (softras's filters choose their levels per lane)
                 pass
             elif sampler.aniso:                           # (one level each, never vectorised)
                 _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
@@ -501,7 +501,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                     li[_LI_PASS, l] = p
                     quad_passed |= p
                 block_passed |= quad_passed
-                if state.texture and not sampler.ripmap:  # the quad's levels on its lanes: what each filter reads
+                if state.texture and not sampler.beyond:  # the quad's levels on its lanes: what each filter reads
                     block_two |= _quad_levels(q, quad_passed != 0, sampler, table, vectorised, any_two, lf, li)
             if block_passed == 0:
                 continue
@@ -513,10 +513,10 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                     _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
                 else:
                     _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, sampler)
-            elif sampler.ripmap:
+            elif sampler.beyond:
                 for l in range(n):
                     if li[_LI_PASS, l]:
-                        _ripmap_lane(l, lf, sampler, texels, table)
+                        _beyond_lane(l, lf, sampler, texels, table)
             else:
                 for l in range(n):
                     if li[_LI_PASS, l]:
@@ -594,7 +594,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
 # keyed on the kernels' sources and those of the stages' kernels they inline
 # (`unorm8` and `blend_byte` of softras.pipeline.ops, `wrap_index` and
 # `ewa_texel` of softras.pipeline.texture, `_sample_box` of
-# softras.pipeline.rasterize).
-_SOURCES = sources_stamp(ops, texture, rasterize, libm)
+# softras.pipeline.rasterize, `ewa_ellipse` of softras.pipeline.texture_beyond).
+_SOURCES = sources_stamp(ops, texture, rasterize, libm, texture_beyond)
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
                for n_samples in DRIVER_SAMPLES for textured in (False, True)}

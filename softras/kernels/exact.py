@@ -3,14 +3,13 @@
 `softras.pipeline.render` in ``precision="exact"`` shades a draw's fragments
 as numpy arrays, ~300 bytes and a few dozen array passes a fragment.  Here
 a triangle draw (unlit, flat, Gouraud or Phong; textured with the GL
-filters, isotropic; normal or bump mapped; alpha test, every depth function
-and blend equation) is rasterized, shaded and applied by one parallel
-kernel (`_draw`); its vertex and clip stages are the stages' own
-functions, its set-up and corner values compiled mirrors
-(`setup_triangles`, `corner_values`); line draws take
-`softras.kernels.exact_lines`, every other draw (anisotropic filtering,
-`softras.pipeline.texture_beyond`'s filters, texture bounds) the stages'
-`draw_triangles`, on the same float64 buffers;
+filters, anisotropic included, or softras's own; normal or bump mapped;
+alpha test, every depth function and blend equation) is rasterized, shaded
+and applied by one parallel kernel (`_draw`); its vertex and clip stages
+are the stages' own functions, its set-up and corner values compiled
+mirrors (`setup_triangles`, `corner_values`); line draws take
+`softras.kernels.exact_lines`, a textured draw under ``texture_bounds``
+the stages' `draw_triangles`, on the same float64 buffers;
 `resolve` makes the picture.  The bytes are the stages' (tests/test_exact_path.py):
 
 - set-up: `softras.pipeline.setup.setup_triangles` (`_setup`) and the
@@ -23,7 +22,10 @@ functions, its set-up and corner values compiled mirrors
   `softras.pipeline.render.phong_attributes` and
   `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
   for a texture `softras.pipeline.render.uv_at_fragments`
-  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_texel`), for
+  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_texel`;
+  anisotropic: `_anisotropic`) or
+  `softras.pipeline.texture_beyond.sample_beyond`
+  (`softras.kernels.texture_beyond._beyond_texel`), for
   a normal or bump map `softras.pipeline.render.mapped_normals`
   (`_map_texels`, `softras.kernels.light._perturb`),
   `shade_unlit`, `alpha_test`, each with the stages' operations in their order;
@@ -47,6 +49,7 @@ kernels alone, none of the tile drivers).
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numba
 import numpy as np
@@ -60,6 +63,7 @@ from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _filter_level, _nan_max, texture_tables
+from softras.kernels.texture_beyond import _beyond_texel, beyond_tables
 from softras.pipeline import libm, ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle, _sample_box
 from softras.scene import Scene
@@ -74,22 +78,13 @@ NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2     # a draw's normal or bump map
 
 def compiled(scene: Scene, draw, inputs: stages.Pass) -> bool:
     """Whether `_draw` draws ``draw`` in the pass ``inputs``: triangles,
-    untextured or with a texture that `softras.pipeline.texture.sample`
-    filters isotropically (no ``texture_filter`` for it, ``max_anisotropy``
-    1), with or without a normal or bump map that it filters isotropically
-    too, no ``texture_bounds``."""
+    untextured, or textured, normal or bump mapped without ``texture_bounds``
+    (every filter: GL's, anisotropic included, and softras's own)."""
     material = draw.material
     if draw.mesh.primitive != "triangles":
         return False
-    names = [name for name in (material.texture, material.normal_map, material.bump_map) if name is not None]
-    if not names:
-        return True
-    if inputs.texture_bounds is not None:
-        return False
-    tex = scene.textures[material.texture] if material.texture is not None else None
-    if tex is not None and texture_beyond.filter_for(inputs.texture_filter, tex.name) is not None:
-        return False
-    return all(texture.effective_anisotropy(scene.textures[name].max_anisotropy, gl=False) <= 1 for name in names)
+    textured = any(name is not None for name in (material.texture, material.normal_map, material.bump_map))
+    return not textured or inputs.texture_bounds is None
 
 
 def render_samples(scene: Scene, job: stages.Job, reuse: bool = False) -> np.ndarray:
@@ -186,6 +181,14 @@ def _corners(weights, source, indices, triangle, corner, values, out):
                 for j in range(3):
                     total += weights[clipped, row, j] * values[indices[vertices, j], c]
                 out[t, k, c] = total
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _nan_min(a, b):
+    """np.minimum of two values: NaN if either is NaN."""
+    if a != a or b != b:
+        return np.nan
+    return min(a, b)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -355,9 +358,11 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
     if material.texture is not None or map_name is not None:
         uv = corners(mesh.uvs)                                         # (T', 3, 2), float64 as given
     if material.texture is not None:
-        sampler, texels = texture_tables(texture.prepare(scene.textures[material.texture]), False)
+        tex = texture.prepare(scene.textures[material.texture])
+        beyond = texture_beyond.filter_for(inputs.texture_filter, tex.name)
+        sampler, texels = beyond_tables(tex, beyond) if beyond is not None else exact_sampler(tex)
     if map_name is not None:
-        map_sampler, map_texels = texture_tables(texture.prepare(scene.textures[map_name]), False)
+        map_sampler, map_texels = exact_sampler(texture.prepare(scene.textures[map_name]))
     mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if map_name is not None else NO_MAP
     cutoff = material.alpha_cutoff
     c = np.ascontiguousarray
@@ -428,18 +433,11 @@ def _levels(rho2, last, mip):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
-    """`softras.pipeline.texture.sample` in exact precision, isotropic, at
-    (s, t) with the derivatives of `_st_derivatives`: sampler, texels (the
-    mip chain's bytes) and table (L, 3) (byte offset, width, height per
-    level) as `softras.kernels.texture.texture_tables` gives them.  The
-    level-0 footprint rho^2 (`texel_derivatives`, `rho_squared`), the levels
-    (`_levels`), the min or mag filter on one or two levels and their blend
-    ``c0 + f (c1 - c0)``.  Returns premultiplied (r, g, b, a) in [0, 1]."""
-    width, height = table[0, 1], table[0, 2]
-    du_s, du_t = dsdx * width, dtdx * height
-    dv_s, dv_t = dsdy * width, dtdy * height
-    rho2 = _nan_max(du_s * du_s + du_t * du_t, dv_s * dv_s + dv_t * dv_t)
+def _texel_at(sampler, texels, table, s, t, rho2):
+    """`softras.pipeline.texture.filter_at_lod` in exact precision at (s, t)
+    and the level-0 footprint rho^2: the levels (`_levels`), the min or mag
+    filter on one or two levels and their blend ``c0 + f (c1 - c0)``.
+    Returns premultiplied (r, g, b, a) in [0, 1]."""
     magnified, level0, level1, frac = _levels(rho2, sampler.levels - 1, sampler.mip)
     linear = (sampler.mag_filter if magnified else sampler.min_filter) == 1
     level = 0 if magnified else level0
@@ -452,6 +450,73 @@ def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
     return r / 255.0, g / 255.0, b / 255.0, a / 255.0
 
 
+def _make_anisotropic(sources: str):
+    """The kernel `_anisotropic`, cached under the key ``sources`` (a closure
+    variable, `softras.kernels.stamp`): a function of its own, not inlined
+    into each of `_texel`'s five callers."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _anisotropic(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
+        """`softras.pipeline.texture.sample_anisotropic` in exact precision:
+        the EXT spec's probes (`softras.pipeline.texture.anisotropic_probes`
+        with the limit ``sampler.aniso``, `exact_sampler`), each
+        `_texel_at` the probes' rho^2, at ``(s, t) + (i / (N + 1) - 1/2)``
+        times the longer derivative vector, i = 1 .. N, summed in that
+        order and divided by N."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        width, height = table[0, 1], table[0, 2]
+        px = np.hypot(dsdx * width, dtdx * height)
+        py = np.hypot(dsdy * width, dtdy * height)
+        pmax, pmin = _nan_max(px, py), _nan_min(px, py)
+        ratio = pmax / pmin if pmin > 0 else np.inf
+        if not pmax > 0:
+            ratio = 1.0
+        limit = float(sampler.aniso)
+        if ratio != ratio:                                  # (inf / inf: numpy's int64 of NaN, then at least 1)
+            count = np.int64(1)
+        else:
+            count = max(np.int64(min(np.ceil(min(ratio, limit)), limit)), np.int64(1))
+        step = pmax / count
+        rho2 = step * step
+        axis_s, axis_t = (dsdx, dtdx) if px > py else (dsdy, dtdy)
+        r = g = b = a = 0.0
+        for i in range(1, count + 1):
+            offset = i / (count + 1.0) - 0.5
+            pr, pg, pb, pa = _texel_at(sampler, texels, table, s + offset * axis_s, t + offset * axis_t, rho2)
+            r, g, b, a = r + pr, g + pg, b + pb, a + pa
+        return r / count, g / count, b / count, a / count
+
+    return _anisotropic
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
+    """`softras.pipeline.texture.sample` in exact precision at (s, t) with
+    the derivatives of `_st_derivatives`: sampler, texels (the mip chain's
+    bytes) and table (L, 3) (byte offset, width, height per level) as
+    `exact_sampler` gives them.  Anisotropic (``sampler.aniso``, the probe
+    limit): `_anisotropic`; else the level-0 footprint rho^2
+    (`texel_derivatives`, `rho_squared`) and `_texel_at`.  Returns
+    premultiplied (r, g, b, a) in [0, 1]."""
+    if sampler.aniso:
+        return _ANISOTROPIC(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
+    width, height = table[0, 1], table[0, 2]
+    du_s, du_t = dsdx * width, dtdx * height
+    dv_s, dv_t = dsdy * width, dtdy * height
+    rho2 = _nan_max(du_s * du_s + du_t * du_t, dv_s * dv_s + dv_t * dv_t)
+    return _texel_at(sampler, texels, table, s, t, rho2)
+
+
+def exact_sampler(tex: texture.MipTexture):
+    """`softras.kernels.texture.texture_tables` of a prepared texture for
+    `_texel`: float weights, and ``aniso`` the EXT spec's probe limit
+    ``max(1, floor(max_anisotropy))`` where exact precision filters
+    anisotropically (`softras.pipeline.texture.effective_anisotropy` > 1), else 0."""
+    sampler, texels = texture_tables(tex, False)
+    anisotropic = texture.effective_anisotropy(tex.max_anisotropy, gl=False) > 1
+    return sampler._replace(aniso=max(1, math.floor(tex.max_anisotropy)) if anisotropic else 0), texels
+
+
 def _make_texels(sources: str):
     """The kernel `_texels`, with the cache key ``sources`` as a closure
     variable (`softras.kernels.stamp.sources_stamp`)."""
@@ -461,15 +526,22 @@ def _make_texels(sources: str):
         """The texels of a textured triangle's k fragments of one band:
         pixel (out_x[f], out_y[f]) with perspective weights weights[:, f],
         the triangle's `Corners` and its corners' (s, t) as u, v 3-tuples;
-        `softras.pipeline.render.uv_at_fragments` (exact) and `_texel`, into
-        out (4, >= k).  A function of its own, called once per triangle and
+        `softras.pipeline.render.uv_at_fragments` (exact) and `_texel` (under
+        a ``texture_filter``: `softras.kernels.texture_beyond._beyond_texel`),
+        into out (4, >= k).  A function of its own, called once per triangle and
         band: inlined into `_draw`, the texture code made it take 47 s to
         compile."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
         for f in range(k):
             w = (weights[0, f], weights[1, f], weights[2, f])
             dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, out_x[f] + 0.5, out_y[f] + 0.5)
-            r, g, b, a = _texel(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
+            if sampler.beyond:                  # (`texture_filter`: level-0 texels as `texel_derivatives`)
+                width, height = table[0, 1], table[0, 2]
+                r, g, b, a = _beyond_texel(_mix(w, u), _mix(w, v), dsdx * width, dtdx * height, dsdy * width,
+                                           dtdy * height, sampler, texels, table)
+                r, g, b, a = r / 255.0, g / 255.0, b / 255.0, a / 255.0
+            else:
+                r, g, b, a = _texel(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
             out[0, f], out[1, f], out[2, f], out[3, f] = r, g, b, a
 
     return _texels
@@ -654,7 +726,8 @@ def _make_draw(sources: str):
 
 
 # The kernels, keyed on the kernels' sources and the stages' they call.
-_SOURCES = sources_stamp(rasterize, ops, texture, libm)
+_SOURCES = sources_stamp(rasterize, ops, texture, libm, texture_beyond)
+_ANISOTROPIC = _make_anisotropic(_SOURCES)
 _TEXELS = _make_texels(_SOURCES)
 _MAP_TEXELS = _make_map_texels(_SOURCES)
 _scratch = _Scratch()

@@ -42,11 +42,12 @@ MIN_FILTERS = ("nearest", "linear") + texture_stage.MIPMAP_FILTERS
 # fixed8 (1: llvmpipe's 8.8 fixed-point weights,
 # `softras.pipeline.texture.uses_fixed_point`), the number of levels used,
 # whether the vectorised filter applies (`_lanes_bilinear_fixed`),
-# whether the sampler is llvmpipe's anisotropic one (`_aniso_lane`), and for
-# the ripmap filter (`ripmap_tables`) the ripmap's levels along u (0: not a
-# ripmap).
+# whether the sampler is llvmpipe's anisotropic one (`_aniso_lane`), for
+# the ripmap filter (`softras.kernels.texture_beyond.ripmap_tables`) the
+# ripmap's levels along u (0: not a ripmap), and which of softras's own
+# filters it is (`softras.kernels.texture_beyond.BEYOND_CODES`; 0: a GL one).
 Sampler = namedtuple("Sampler", ["min_filter", "mag_filter", "mip", "wrap_s", "wrap_t", "fixed8", "levels",
-                                 "vectorised", "aniso", "ripmap"])
+                                 "vectorised", "aniso", "ripmap", "beyond"])
 
 # A prepared texture's texels as the kernels read them (`texture_tables`): the
 # used mip levels as one flat buffer of bytes (N,) uint8, the same buffer as
@@ -60,7 +61,7 @@ Texels = namedtuple("Texels", ["bytes", "words", "levels", "ewa"])
 _EWA = texture_stage.llvmpipe_ewa_table()
 
 # What an untextured draw passes (the same types: one compiled kernel).
-NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0, 0, 0),
+NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0),
               Texels(np.zeros(4, np.uint8), np.zeros(1, np.uint32), np.zeros((1, 3), np.int64), _EWA))
 
 
@@ -116,7 +117,7 @@ def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
                           for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))))
     aniso = texture_stage.effective_anisotropy(tex.max_anisotropy, True) > 1    # (then never fixed8)
     sampler = Sampler(min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t], int(fixed8),
-                      len(levels), int(vectorised), int(aniso), 0)
+                      len(levels), int(vectorised), int(aniso), 0, 0)
     return sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
 
 
@@ -180,7 +181,8 @@ def _wrap_select(i, size, mode):
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _filter_level(texels, base, lw, lh, s, t, linear, wrap_s, wrap_t):
     """`softras.pipeline.texture.filter_level` in float64 (exact precision,
-    and the ripmap's levels in any, `_ripmap_lane`) on the level of lw x lh
+    and softras's own filters' levels in any,
+    `softras.kernels.texture_beyond._beyond_lane`) on the level of lw x lh
     texels from byte ``base`` of ``texels`` (the mip chain's bytes, RGBA8
     premultiplied): nearest (``floor(s W)``, wrapped) or the float bilinear
     filter.  Returns the four channels on the 0..255
@@ -384,7 +386,7 @@ def _lanes_aniso_levels(n, sampler, width0, height0, lf, li):
 def _make_aniso_lane(sources: str):
     """The kernel `_aniso_lane`, cached under the key ``sources``
     (`softras.kernels.stamp.sources_stamp`, a closure variable): a function
-    of its own, not inlined, as `softras.kernels.texture_beyond._ripmap_lane`,
+    of its own, not inlined, as `softras.kernels.texture_beyond._beyond_texel`,
     so that the textured tile drivers call one compiled copy of llvmpipe's
     anisotropic filter (inlined, it made each driver's compile longer; see
     docs/speed.md)."""
