@@ -488,32 +488,32 @@ def _make_anisotropic(sources: str):
     return _anisotropic
 
 
-def _make_texel(sources: str):
-    """The kernel `_texel`, cached under the key ``sources`` (a closure
-    variable, `softras.kernels.stamp`): one compiled copy that `_texels` and
-    `_map_texels` (five lookups) call; inlined into them, with
-    `_texel_at` inlined into it, the exact kernels took 309 s to compile
-    instead of ~50."""
-
-    @numba.njit(cache=True, error_model="numpy")
-    def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
-        """`softras.pipeline.texture.sample` in exact precision at (s, t) with
-        the derivatives of `_st_derivatives`: sampler, texels (the mip chain's
-        bytes) and table (L, 3) (byte offset, width, height per level) as
-        `exact_sampler` gives them.  Anisotropic (``sampler.aniso``, the probe
-        limit): `_anisotropic`; else the level-0 footprint rho^2
-        (`texel_derivatives`, `rho_squared`) and `_texel_at`.  Returns
-        premultiplied (r, g, b, a) in [0, 1]."""
-        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
-        if sampler.aniso:
-            return _ANISOTROPIC(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
-        width, height = table[0, 1], table[0, 2]
-        du_s, du_t = dsdx * width, dtdx * height
-        dv_s, dv_t = dsdy * width, dtdy * height
-        rho2 = _nan_max(du_s * du_s + du_t * du_t, dv_s * dv_s + dv_t * dv_t)
-        return _texel_at(sampler, texels, table, s, t, rho2)
-
-    return _texel
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
+    """`softras.pipeline.texture.sample` in exact precision at (s, t) with
+    the derivatives of `_st_derivatives`: sampler, texels (the mip chain's
+    bytes) and table (L, 3) (byte offset, width, height per level) as
+    `exact_sampler` gives them.  Anisotropic (``sampler.aniso``, the probe
+    limit): `_anisotropic`; else the level-0 footprint rho^2
+    (`texel_derivatives`, `rho_squared`) and `_texel_at`'s operations
+    (written out: a second inlined level made the exact kernels' compile
+    take 309 s instead of ~50).  Returns premultiplied (r, g, b, a) in [0, 1]."""
+    if sampler.aniso:
+        return _ANISOTROPIC(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
+    width, height = table[0, 1], table[0, 2]
+    du_s, du_t = dsdx * width, dtdx * height
+    dv_s, dv_t = dsdy * width, dtdy * height
+    rho2 = _nan_max(du_s * du_s + du_t * du_t, dv_s * dv_s + dv_t * dv_t)
+    magnified, level0, level1, frac = _levels(rho2, sampler.levels - 1, sampler.mip)
+    linear = (sampler.mag_filter if magnified else sampler.min_filter) == 1
+    level = 0 if magnified else level0
+    r, g, b, a = _filter_level(texels, table[level, 0], table[level, 1], table[level, 2], s, t, linear,
+                               sampler.wrap_s, sampler.wrap_t)
+    if not magnified and level1 != level0 and frac > 0:
+        r1, g1, b1, a1 = _filter_level(texels, table[level1, 0], table[level1, 1], table[level1, 2], s, t, linear,
+                                       sampler.wrap_s, sampler.wrap_t)
+        r, g, b, a = r + frac * (r1 - r), g + frac * (g1 - g), b + frac * (b1 - b), a + frac * (a1 - a)
+    return r / 255.0, g / 255.0, b / 255.0, a / 255.0
 
 
 def exact_sampler(tex: texture.MipTexture):
@@ -550,7 +550,7 @@ def _make_texels(sources: str):
                                            dtdy * height, sampler, texels, table)
                 r, g, b, a = r / 255.0, g / 255.0, b / 255.0, a / 255.0
             else:
-                r, g, b, a = _TEXEL(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
+                r, g, b, a = _texel(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
             out[0, f], out[1, f], out[2, f], out[3, f] = r, g, b, a
 
     return _texels
@@ -577,13 +577,13 @@ def _make_map_texels(sources: str):
             dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, out_x[f] + 0.5, out_y[f] + 0.5)
             s, t = _mix(w, u), _mix(w, v)
             if not bump:
-                r, g, b, _ = _TEXEL(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
+                r, g, b, _ = _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
                 out[0, f], out[1, f], out[2, f] = 2.0 * r - 1.0, 2.0 * g - 1.0, 2.0 * b - 1.0
                 continue
-            dh_s = (_TEXEL(sampler, texels, table, s + step_s, t, dsdx, dtdx, dsdy, dtdy)[0]
-                    - _TEXEL(sampler, texels, table, s + -step_s, t, dsdx, dtdx, dsdy, dtdy)[0])
-            dh_t = (_TEXEL(sampler, texels, table, s, t + step_t, dsdx, dtdx, dsdy, dtdy)[0]
-                    - _TEXEL(sampler, texels, table, s, t + -step_t, dsdx, dtdx, dsdy, dtdy)[0])
+            dh_s = (_texel(sampler, texels, table, s + step_s, t, dsdx, dtdx, dsdy, dtdy)[0]
+                    - _texel(sampler, texels, table, s + -step_s, t, dsdx, dtdx, dsdy, dtdy)[0])
+            dh_t = (_texel(sampler, texels, table, s, t + step_t, dsdx, dtdx, dsdy, dtdy)[0]
+                    - _texel(sampler, texels, table, s, t + -step_t, dsdx, dtdx, dsdy, dtdy)[0])
             out[0, f], out[1, f], out[2, f] = -bump_scale * dh_s * 0.5, -bump_scale * dh_t * 0.5, 1.0
 
     return _map_texels
@@ -737,7 +737,6 @@ def _make_draw(sources: str):
 # The kernels, keyed on the kernels' sources and the stages' they call.
 _SOURCES = sources_stamp(rasterize, ops, texture, libm, texture_beyond)
 _ANISOTROPIC = _make_anisotropic(_SOURCES)
-_TEXEL = _make_texel(_SOURCES)
 _TEXELS = _make_texels(_SOURCES)
 _MAP_TEXELS = _make_map_texels(_SOURCES)
 _scratch = _Scratch()
