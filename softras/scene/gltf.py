@@ -37,7 +37,6 @@ glTF's TEXCOORD_0 has v = 0 at the top of the image, as the scene format.
 from __future__ import annotations
 
 import dataclasses
-
 import io
 import math
 import os
