@@ -68,6 +68,10 @@ DEFAULT_GOLDEN_DIR = Path("golden")
 #: Tolerances used when comparing two PNG files (same as softras.compare).
 DEFAULT_TOLERANCE = {"threshold": 2, "max_bad_fraction": 0.001, "min_ssim": 0.99}
 
+#: ``render --texture-filter``: `softras.pipeline.texture_beyond.FILTERS`, written
+#: out so that ``--help`` imports no numpy (tests/test_cli.py checks they agree).
+TEXTURE_FILTERS = ("ripmap", "ewa", "level0")
+
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_ERROR = 2
@@ -260,7 +264,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         extra["framebuffer"] = args.framebuffer
     if args.texture_filter is not None:
         if args.backend == "gl":
-            raise CLIError("--texture-filter applies to --backend soft only (GL has no ripmap or EWA)")
+            raise CLIError("--texture-filter applies to --backend soft only (GL has no ripmap, EWA or level-0 filter)")
         extra["texture_filter"] = args.texture_filter
     scene = _load_scene(args.scene)
     output = _check_output_file(args.output)
@@ -821,9 +825,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("scene", metavar="SCENE", help="scene file (JSON, format version 1)")
     render.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG file to write")
     _add_render_options(render, backend=True, sampling=True)
-    render.add_argument("--texture-filter", choices=("ripmap", "ewa"), default=None,
-                        help="soft only: filter every texture with a ripmap or EWA (Heckbert) "
-                             "instead of its min filter (softras.pipeline.texture_beyond)")
+    render.add_argument("--texture-filter", choices=TEXTURE_FILTERS, default=None,
+                        help="soft only: filter every texture with a ripmap, EWA (Heckbert) or level 0's "
+                             "bilinear instead of its min filter (softras.pipeline.texture_beyond)")
     render.set_defaults(func=cmd_render)
 
     compare = commands.add_parser(

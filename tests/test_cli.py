@@ -489,3 +489,19 @@ def test_an_output_that_is_not_png_is_refused(tmp_path, capsys, name):
     assert status == 2
     assert capsys.readouterr().err == f"softras: error: {output}: softras writes PNG pictures only; name the file .png\n"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_render_offers_every_texture_filter_and_draws_what_the_api_draws(tmp_path):
+    """``render --texture-filter`` takes each of `texture_beyond.FILTERS` (level0
+    was missing) and writes the picture `softras.render` gives for it."""
+    import softras
+    from softras.cli import TEXTURE_FILTERS
+    from softras.pipeline.texture_beyond import FILTERS
+
+    assert TEXTURE_FILTERS == FILTERS
+    scene = Path(__file__).resolve().parent.parent / "scenes" / "texture_npot.json"
+    for name in FILTERS:
+        out = tmp_path / f"{name}.png"
+        assert main(["render", str(scene), "-o", str(out), "--texture-filter", name]) == 0
+        expected = softras.render(softras.load_scene(scene), texture_filter=name)
+        assert np.array_equal(read_png(out), expected), name
