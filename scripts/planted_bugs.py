@@ -64,7 +64,7 @@ if str(REPO) not in sys.path:
 
 import softras  # noqa: E402
 from softras.scene import Scene, load_scene  # noqa: E402
-from softras.verification.verifier import FAIL, NOT_SUPPORTED, VERDICT_NAMES  # noqa: E402
+from softras.verification.verifier import FAIL, NOT_SUPPORTED, VERDICT_NAMES, spec_bounds  # noqa: E402
 
 SCENES = REPO / "scenes"
 IMPLEMENTATIONS = ("llvmpipe", "softpipe")
@@ -476,10 +476,11 @@ class Row:
         return out
 
 
-def _judge(scene: Scene, image, reference, ref: Reference, profile: str = "spec") -> tuple[str, dict, list[str]]:
+def _judge(scene: Scene, image, reference, ref: Reference, profile: str = "spec",
+           bounds=None) -> tuple[str, dict, list[str]]:
     if isinstance(reference, str):
         return NOT_SUPPORTED, {}, [f"GL cannot draw the scene: {reference}"]
-    result = softras.verify(scene, image, reference, profile=profile, capabilities=ref.info)
+    result = softras.verify(scene, image, reference, profile=profile, capabilities=ref.info, bounds=bounds)
     figures = dict(result.figures)
     if result.bounds is not None:
         value = np.asarray(image, np.float64) / (255.0 if np.asarray(image).dtype == np.uint8 else 1.0)
@@ -498,9 +499,13 @@ def run(references: list[Reference], mutations=MUTATIONS, *, log=None) -> list[R
         start = time.perf_counter()
         clean = render_scene(scene, precision="gl")
         clean_seconds = time.perf_counter() - start
+        # The spec bounds depend on the scene and the GL's capabilities, not on
+        # the picture judged: one set per reference for every picture of the scene.
+        bounds = {ref.name: spec_bounds(scene, ref.info) for ref in references
+                  if not isinstance(ref.pictures[name], str)}
         for ref in references:
             start = time.perf_counter()
-            verdict, figures, reasons = _judge(scene, clean, ref.pictures[name], ref)
+            verdict, figures, reasons = _judge(scene, clean, ref.pictures[name], ref, bounds=bounds.get(ref.name))
             rows.append(Row(None, name, ref.name, "spec", verdict, "not fail", figures.get("outside_image"),
                             figures.get("outside_reference"), 0, figures.get("worst_255"), reasons,
                             clean_seconds + time.perf_counter() - start))
@@ -515,7 +520,8 @@ def run(references: list[Reference], mutations=MUTATIONS, *, log=None) -> list[R
             changed = int((np.asarray(image) != np.asarray(clean)).any(axis=-1).sum())
             for ref in references:
                 start = time.perf_counter()
-                verdict, figures, reasons = _judge(scene, image, ref.pictures[name], ref)
+                verdict, figures, reasons = _judge(scene, image, ref.pictures[name], ref,
+                                                   bounds=bounds.get(ref.name))
                 rows.append(Row(m.name, name, ref.name, "spec", verdict, "not fail" if m.permitted else "fail",
                                 figures.get("outside_image"), figures.get("outside_reference"), changed,
                                 figures.get("worst_255"), reasons,

@@ -47,8 +47,10 @@ def compare(a, b, **tolerance):
 
 
 def verify(scene, image, reference, *, profile: str = "spec", capabilities: dict | None = None,
-           tolerance: dict | None = None):
+           tolerance: dict | None = None, bounds=None):
     """Does ``image`` agree with GL's ``reference`` up to what GL lets conformant
-    implementations differ? See `softras.verification.verifier.verify` (returns a Verification)."""
+    implementations differ? See `softras.verification.verifier.verify` (returns a Verification;
+    ``bounds``: its `spec_bounds` of the scene, reused across pictures)."""
     from softras.verification.verifier import verify as _verify
-    return _verify(scene, image, reference, profile=profile, capabilities=capabilities, tolerance=tolerance)
+    return _verify(scene, image, reference, profile=profile, capabilities=capabilities, tolerance=tolerance,
+                   bounds=bounds)

@@ -131,6 +131,30 @@ def test_spec_passes_softras_against_gl_and_fails_planted_bugs():
     assert bad_ref.verdict == verifier.FAIL and bad_ref.reasons[0].startswith("the reference: 1 px")
 
 
+def test_bounds_computed_once_judge_as_verify_computes_them():
+    """``verify(..., bounds=spec_bounds(scene, caps))`` gives every picture of
+    the scene the verdict, reasons and figures of a verify that renders the
+    bounds itself (the bounds do not depend on the picture judged); bounds
+    of another size are refused."""
+    scene = softras.load_scene(TRIANGLES)
+    caps = glref.info()
+    reference = glref.render(scene)
+    bounds = verifier.spec_bounds(scene, caps)
+    moved = json.loads(json.dumps(TRIANGLES))
+    moved["nodes"][0]["mesh"]["positions"][3][0] -= 1.0
+    for image in (render_scene(scene), render_scene(softras.load_scene(moved))):
+        fresh = softras.verify(scene, image, reference, capabilities=caps)
+        reused = softras.verify(scene, image, reference, capabilities=caps, bounds=bounds)
+        assert (reused.verdict, reused.reasons, reused.figures) == (fresh.verdict, fresh.reasons, fresh.figures)
+        assert reused.bounds is bounds
+    assert {softras.verify(scene, image, reference, capabilities=caps, bounds=bounds).verdict
+            for image in (render_scene(scene), render_scene(softras.load_scene(moved)))} == {verifier.PASS,
+                                                                                             verifier.FAIL}
+    small = dataclasses.replace(bounds, lo=bounds.lo[:10], hi=bounds.hi[:10])
+    with pytest.raises(ValueError, match="bounds are 32x10 but the scene is 32x24"):
+        softras.verify(scene, render_scene(scene), reference, capabilities=caps, bounds=small)
+
+
 @pytest.mark.gl
 def test_strict_profile_through_verify():
     scene = softras.load_scene(SCENES / "fill_rule_grid.json")

@@ -671,7 +671,7 @@ def _picture(value, name: str, shape: tuple[int, int]) -> np.ndarray:
 
 
 def verify(scene, image, reference, *, profile: str = "spec", capabilities: dict | None = None,
-           tolerance: dict | None = None) -> Verification:
+           tolerance: dict | None = None, bounds: Bounds | None = None) -> Verification:
     """Judge whether `image` and `reference` agree up to what GL lets conformant implementations differ.
 
     Parameters
@@ -690,6 +690,12 @@ def verify(scene, image, reference, *, profile: str = "spec", capabilities: dict
         sub-pixel bits set the coverage bounds.
     tolerance : dict, optional
         The strict tolerance; default the scene's (:func:`scene_tolerance`).
+    bounds : Bounds, optional
+        ``spec_bounds(scene, capabilities)`` computed before, to judge several
+        pictures of one scene against one GL without rendering the bounds'
+        variants again (they depend on the scene and the capabilities only);
+        it must be of this scene and these capabilities.  Used by the spec
+        profile only.
 
     Returns
     -------
@@ -706,7 +712,11 @@ def verify(scene, image, reference, *, profile: str = "spec", capabilities: dict
     if tolerance is None:
         tolerance, _ = scene_tolerance(scene)
     if chosen == "spec":
-        bounds = spec_bounds(scene, capabilities)
+        if bounds is None:
+            bounds = spec_bounds(scene, capabilities)
+        elif bounds.lo.shape[:2] != shape:
+            raise ValueError(f"bounds are {bounds.lo.shape[1]}x{bounds.lo.shape[0]} "
+                             f"but the scene is {shape[1]}x{shape[0]}")
         verdict, reasons, figures, images = judge_spec(scene, image, reference, tolerance, bounds,
                                                        draw_ids=draw_ids(scene, capabilities=capabilities))
         return Verification(verdict, chosen, reasons, figures, images, bounds)
