@@ -22,8 +22,8 @@ the stages' `draw_triangles`, on the same float64 buffers;
   `softras.pipeline.render.phong_attributes` and
   `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
   for a texture `softras.pipeline.render.uv_at_fragments`
-  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_texel`;
-  anisotropic: `_anisotropic`) or
+  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_footprint_levels`,
+  `_texel_at`; anisotropic: `_anisotropic`) or
   `softras.pipeline.texture_beyond.sample_beyond`
   (`softras.kernels.texture_beyond._beyond_texel`), for
   a normal or bump map `softras.pipeline.render.mapped_normals`
@@ -433,12 +433,29 @@ def _levels(rho2, last, mip):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _texel_at(sampler, texels, table, s, t, rho2):
+def _footprint_levels(sampler, table, dsdx, dtdx, dsdy, dtdy):
+    """The levels `softras.pipeline.texture.sample` takes in exact precision
+    at the derivatives of `_st_derivatives` (d(s, t) per window pixel): the
+    level-0 footprint rho^2 (`texel_derivatives`, `rho_squared`) and
+    `_levels` of it, for `_texel_at`.  All lookups at one fragment share
+    them (a bump map's four)."""
+    width, height = table[0, 1], table[0, 2]
+    du_s, du_t = dsdx * width, dtdx * height
+    dv_s, dv_t = dsdy * width, dtdy * height
+    rho2 = _nan_max(du_s * du_s + du_t * du_t, dv_s * dv_s + dv_t * dv_t)
+    return _levels(rho2, sampler.levels - 1, sampler.mip)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _texel_at(sampler, texels, table, s, t, magnified, level0, level1, frac):
     """`softras.pipeline.texture.filter_at_lod` in exact precision at (s, t)
-    and the level-0 footprint rho^2: the levels (`_levels`), the min or mag
-    filter on one or two levels and their blend ``c0 + f (c1 - c0)``.
-    Returns premultiplied (r, g, b, a) in [0, 1]."""
-    magnified, level0, level1, frac = _levels(rho2, sampler.levels - 1, sampler.mip)
+    on the levels `_levels` chose (magnified, level0, level1, frac): the
+    min or mag filter on one or two levels and their blend
+    ``c0 + f (c1 - c0)``.  sampler, texels (the mip chain's bytes) and
+    table (L, 3) (byte offset, width, height per level) as `exact_sampler`
+    gives them.  Inlined once in each kernel that samples (a second inlined
+    level, or one copy per lookup, costs minutes of compile).  Returns
+    premultiplied (r, g, b, a) in [0, 1]."""
     linear = (sampler.mag_filter if magnified else sampler.min_filter) == 1
     level = 0 if magnified else level0
     r, g, b, a = _filter_level(texels, table[level, 0], table[level, 1], table[level, 2], s, t, linear,
@@ -452,14 +469,15 @@ def _texel_at(sampler, texels, table, s, t, rho2):
 
 def _make_anisotropic(sources: str):
     """The kernel `_anisotropic`, cached under the key ``sources`` (a closure
-    variable, `softras.kernels.stamp`): a function of its own, as `_texel`."""
+    variable, `softras.kernels.stamp`): a function of its own, called by
+    `_texels` and `_map_texels`."""
 
     @numba.njit(cache=True, error_model="numpy")
     def _anisotropic(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
         """`softras.pipeline.texture.sample_anisotropic` in exact precision:
         the EXT spec's probes (`softras.pipeline.texture.anisotropic_probes`
         with the limit ``sampler.aniso``, `exact_sampler`), each
-        `_texel_at` the probes' rho^2, at ``(s, t) + (i / (N + 1) - 1/2)``
+        `_texel_at` the levels of the probes' rho^2, at ``(s, t) + (i / (N + 1) - 1/2)``
         times the longer derivative vector, i = 1 .. N, summed in that
         order and divided by N."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
@@ -476,44 +494,17 @@ def _make_anisotropic(sources: str):
         else:
             count = max(np.int64(min(np.ceil(min(ratio, limit)), limit)), np.int64(1))
         step = pmax / count
-        rho2 = step * step
+        magnified, level0, level1, frac = _levels(step * step, sampler.levels - 1, sampler.mip)
         axis_s, axis_t = (dsdx, dtdx) if px > py else (dsdy, dtdy)
         r = g = b = a = 0.0
         for i in range(1, count + 1):
             offset = i / (count + 1.0) - 0.5
-            pr, pg, pb, pa = _texel_at(sampler, texels, table, s + offset * axis_s, t + offset * axis_t, rho2)
+            pr, pg, pb, pa = _texel_at(sampler, texels, table, s + offset * axis_s, t + offset * axis_t,
+                                       magnified, level0, level1, frac)
             r, g, b, a = r + pr, g + pg, b + pb, a + pa
         return r / count, g / count, b / count, a / count
 
     return _anisotropic
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy):
-    """`softras.pipeline.texture.sample` in exact precision at (s, t) with
-    the derivatives of `_st_derivatives`: sampler, texels (the mip chain's
-    bytes) and table (L, 3) (byte offset, width, height per level) as
-    `exact_sampler` gives them.  Anisotropic (``sampler.aniso``, the probe
-    limit): `_anisotropic`; else the level-0 footprint rho^2
-    (`texel_derivatives`, `rho_squared`) and `_texel_at`'s operations
-    (written out: a second inlined level made the exact kernels' compile
-    take 309 s instead of ~50).  Returns premultiplied (r, g, b, a) in [0, 1]."""
-    if sampler.aniso:
-        return _ANISOTROPIC(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
-    width, height = table[0, 1], table[0, 2]
-    du_s, du_t = dsdx * width, dtdx * height
-    dv_s, dv_t = dsdy * width, dtdy * height
-    rho2 = _nan_max(du_s * du_s + du_t * du_t, dv_s * dv_s + dv_t * dv_t)
-    magnified, level0, level1, frac = _levels(rho2, sampler.levels - 1, sampler.mip)
-    linear = (sampler.mag_filter if magnified else sampler.min_filter) == 1
-    level = 0 if magnified else level0
-    r, g, b, a = _filter_level(texels, table[level, 0], table[level, 1], table[level, 2], s, t, linear,
-                               sampler.wrap_s, sampler.wrap_t)
-    if not magnified and level1 != level0 and frac > 0:
-        r1, g1, b1, a1 = _filter_level(texels, table[level1, 0], table[level1, 1], table[level1, 2], s, t, linear,
-                                       sampler.wrap_s, sampler.wrap_t)
-        r, g, b, a = r + frac * (r1 - r), g + frac * (g1 - g), b + frac * (b1 - b), a + frac * (a1 - a)
-    return r / 255.0, g / 255.0, b / 255.0, a / 255.0
 
 
 def exact_sampler(tex: texture.MipTexture):
@@ -549,8 +540,12 @@ def _make_texels(sources: str):
                 r, g, b, a = _beyond_texel(_mix(w, u), _mix(w, v), dsdx * width, dtdx * height, dsdy * width,
                                            dtdy * height, sampler, texels, table)
                 r, g, b, a = r / 255.0, g / 255.0, b / 255.0, a / 255.0
+            elif sampler.aniso:
+                r, g, b, a = _ANISOTROPIC(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
             else:
-                r, g, b, a = _texel(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
+                magnified, level0, level1, frac = _footprint_levels(sampler, table, dsdx, dtdx, dsdy, dtdy)
+                r, g, b, a = _texel_at(sampler, texels, table, _mix(w, u), _mix(w, v), magnified, level0, level1,
+                                       frac)
             out[0, f], out[1, f], out[2, f], out[3, f] = r, g, b, a
 
     return _texels
@@ -576,15 +571,32 @@ def _make_map_texels(sources: str):
             w = (weights[0, f], weights[1, f], weights[2, f])
             dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, out_x[f] + 0.5, out_y[f] + 0.5)
             s, t = _mix(w, u), _mix(w, v)
-            if not bump:
-                r, g, b, _ = _texel(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
-                out[0, f], out[1, f], out[2, f] = 2.0 * r - 1.0, 2.0 * g - 1.0, 2.0 * b - 1.0
-                continue
-            dh_s = (_texel(sampler, texels, table, s + step_s, t, dsdx, dtdx, dsdy, dtdy)[0]
-                    - _texel(sampler, texels, table, s + -step_s, t, dsdx, dtdx, dsdy, dtdy)[0])
-            dh_t = (_texel(sampler, texels, table, s, t + step_t, dsdx, dtdx, dsdy, dtdy)[0]
-                    - _texel(sampler, texels, table, s, t + -step_t, dsdx, dtdx, dsdy, dtdy)[0])
-            out[0, f], out[1, f], out[2, f] = -bump_scale * dh_s * 0.5, -bump_scale * dh_t * 0.5, 1.0
+            magnified, level0, level1, frac = False, np.int64(0), np.int64(0), 0.0
+            if not sampler.aniso:
+                magnified, level0, level1, frac = _footprint_levels(sampler, table, dsdx, dtdx, dsdy, dtdy)
+            rise_s = rise_t = 0.0
+            for j in range(4 if bump else 1):   # bump: (s + 1/W, t), (s - 1/W, t), (s, t + 1/H), (s, t - 1/H)
+                at_s, at_t = s, t
+                if bump and j < 2:
+                    at_s = s + step_s if j == 0 else s + -step_s
+                elif bump:
+                    at_t = t + step_t if j == 2 else t + -step_t
+                if sampler.aniso:
+                    r, g, b, _ = _ANISOTROPIC(sampler, texels, table, at_s, at_t, dsdx, dtdx, dsdy, dtdy)
+                else:
+                    r, g, b, _ = _texel_at(sampler, texels, table, at_s, at_t, magnified, level0, level1, frac)
+                if not bump:
+                    out[0, f], out[1, f], out[2, f] = 2.0 * r - 1.0, 2.0 * g - 1.0, 2.0 * b - 1.0
+                elif j == 0:
+                    rise_s = r
+                elif j == 1:
+                    rise_s = rise_s - r
+                elif j == 2:
+                    rise_t = r
+                else:
+                    rise_t = rise_t - r
+            if bump:
+                out[0, f], out[1, f], out[2, f] = -bump_scale * rise_s * 0.5, -bump_scale * rise_t * 0.5, 1.0
 
     return _map_texels
 
@@ -624,7 +636,7 @@ def _make_draw(sources: str):
         lit (T', 3, 6) corner world positions and normals (PHONG); lights and
         lighting: `softras.kernels.light.scene_lighting`; whether textured,
         uv (T', 3, 2) the corners' (s, t), and the texture's sampler, texels
-        and level table (`softras.kernels.texture.texture_tables`, `_texel`);
+        and level table (`exact_sampler`);
         the normal or bump map (`mapped`: NO_MAP, NORMAL_MAP or BUMP_MAP, with
         lit (T', 3, 10): the corner world tangents after the normals), its
         sampler, texels and table, and the bump scale (`_map_texels`); the depth function,
