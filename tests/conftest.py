@@ -56,14 +56,20 @@ def pytest_sessionstart(session):
         from softras.kernels import draw, prepare
 
         # Every variant: the tile drivers, exact precision's kernels and the
-        # line kernel, in an order that gives two workers about the same
-        # compile time (every other one: gw0 1u, 4u, 0u, exact; gw1 lines,
-        # 1t, 4t, 0t; ~3 min each).
-        variants = [(1, False), prepare.LINES, (4, False), (1, True), (0, False), (4, True), prepare.EXACT,
-                    (0, True)]
+        # line kernel.  Two workers: the textured drivers on one (they share
+        # the filters and maps they call, compiled once: 1t ~127 s with them,
+        # 4t ~66, 0t ~63), the rest on the other (1u ~66 s with the stages'
+        # kernels, 4u ~34, 0u ~38, lines ~17, exact ~95 once the textured
+        # worker has cached `_beyond_texel`, which it shares): docs/speed.md,
+        # "Twenty-third round".  More workers: every count-th variant.
+        shares = [[(1, False), (4, False), (0, False), prepare.LINES, prepare.EXACT],
+                  [(1, True), (4, True), (0, True)]]
+        variants = [variant for share in shares for variant in share]
         assert sorted(variants, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
                                                             key=prepare.name)
-        for variant in variants[int(worker.removeprefix("gw")) % int(count)::int(count)]:
+        index, count = int(worker.removeprefix("gw")), int(count)
+        mine = shares[index % 2] if count == 2 else variants[index % count::count]
+        for variant in mine:
             prepare.prepare(variant)
     if not session.config.getoption("--update-golden", default=False):
         return

@@ -2,10 +2,12 @@
 
 numba compiles the kernels of `softras.kernels.draw` the first time a
 process needs them and keeps them in its on-disk cache; on a fresh clone
-that takes about 45 s per tile-driver variant (a sample count, textured
-or not: docs/speed.md, "Compile time"), about 25 s for the exact
-kernels (`softras.kernels.exact`, the variant `EXACT`) and about 20 s
-for the gl line kernel (`softras.kernels.lines`, the variant `LINES`).  The readable
+(one core) that takes 35-66 s per untextured tile-driver variant (a sample
+count, textured or not), 63-127 s per textured one (the first pays for the
+filters and maps they share), 95-122 s for the exact kernels
+(`softras.kernels.exact`, the variant `EXACT`) and about 17 s for the gl
+line kernel (`softras.kernels.lines`, the variant `LINES`); 8.5 minutes in
+all (docs/speed.md, "Twenty-third round").  The readable
 stages give the same bytes (tests/test_fastpath.py,
 tests/test_exact_path.py) and compile in seconds, so a render need not
 wait: `ensure` either
