@@ -22,7 +22,7 @@ the stages' `draw_triangles`, on the same float64 buffers;
   `softras.pipeline.render.phong_attributes` and
   `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
   for a texture `softras.pipeline.render.uv_at_fragments`
-  (`_st_derivatives`) and `softras.pipeline.texture.sample` (`_footprint_levels`,
+  (`_uv_at`, `_st_derivatives`) and `softras.pipeline.texture.sample` (`_footprint_levels`,
   `_texel_at`; anisotropic: `_anisotropic`) or
   `softras.pipeline.texture_beyond.sample_beyond`
   (`softras.kernels.texture_beyond._beyond_texel`), for
@@ -517,35 +517,56 @@ def exact_sampler(tex: texture.MipTexture):
     return sampler._replace(aniso=max(1, math.floor(tex.max_anisotropy)) if anisotropic else 0), texels
 
 
+def _make_uv_at(sources: str):
+    """The kernel `_uv_at`, with the cache key ``sources`` as a closure
+    variable (`softras.kernels.stamp.sources_stamp`)."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _uv_at(k, out_x, out_y, weights, corners, u, v, out):
+        """The texture coordinates of a triangle's k fragments of one band,
+        for `_texels` and `_map_texels` (a texture and a normal or bump map
+        read the same ones): pixel (out_x[f], out_y[f]) with perspective
+        weights weights[:, f], the triangle's `Corners` and its corners'
+        (s, t) as u, v 3-tuples; into out (6, >= k) the rows s, t
+        (`softras.pipeline.render.uv_at_fragments`, exact) and ds/dx, dt/dx,
+        ds/dy, dt/dy (`_st_derivatives`)."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        for f in range(k):
+            w = (weights[0, f], weights[1, f], weights[2, f])
+            out[0, f], out[1, f] = _mix(w, u), _mix(w, v)
+            out[2, f], out[3, f], out[4, f], out[5, f] = _st_derivatives(corners, u, v, out_x[f] + 0.5,
+                                                                         out_y[f] + 0.5)
+
+    return _uv_at
+
+
 def _make_texels(sources: str):
     """The kernel `_texels`, with the cache key ``sources`` as a closure
     variable (`softras.kernels.stamp.sources_stamp`)."""
 
     @numba.njit(cache=True, error_model="numpy")
-    def _texels(k, out_x, out_y, weights, corners, u, v, sampler, texels, table, out):
-        """The texels of a textured triangle's k fragments of one band:
-        pixel (out_x[f], out_y[f]) with perspective weights weights[:, f],
-        the triangle's `Corners` and its corners' (s, t) as u, v 3-tuples;
-        `softras.pipeline.render.uv_at_fragments` (exact) and `_texel` (under
-        a ``texture_filter``: `softras.kernels.texture_beyond._beyond_texel`),
+    def _texels(k, uvs, sampler, texels, table, out):
+        """The texels of a textured triangle's k fragments of one band at
+        their (s, t) and derivatives (uvs (6, >= k), `_uv_at`): `_texel_at`
+        on the levels `_footprint_levels` chose, anisotropic `_anisotropic`
+        (under a ``texture_filter``: `softras.kernels.texture_beyond._beyond_texel`),
         into out (4, >= k).  A function of its own, called once per triangle and
         band: inlined into `_draw`, the texture code made it take 47 s to
         compile."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
         for f in range(k):
-            w = (weights[0, f], weights[1, f], weights[2, f])
-            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, out_x[f] + 0.5, out_y[f] + 0.5)
+            s, t = uvs[0, f], uvs[1, f]
+            dsdx, dtdx, dsdy, dtdy = uvs[2, f], uvs[3, f], uvs[4, f], uvs[5, f]
             if sampler.beyond:                  # (`texture_filter`: level-0 texels as `texel_derivatives`)
                 width, height = table[0, 1], table[0, 2]
-                r, g, b, a = _beyond_texel(_mix(w, u), _mix(w, v), dsdx * width, dtdx * height, dsdy * width,
-                                           dtdy * height, sampler, texels, table)
+                r, g, b, a = _beyond_texel(s, t, dsdx * width, dtdx * height, dsdy * width, dtdy * height, sampler,
+                                           texels, table)
                 r, g, b, a = r / 255.0, g / 255.0, b / 255.0, a / 255.0
             elif sampler.aniso:
-                r, g, b, a = _ANISOTROPIC(sampler, texels, table, _mix(w, u), _mix(w, v), dsdx, dtdx, dsdy, dtdy)
+                r, g, b, a = _ANISOTROPIC(sampler, texels, table, s, t, dsdx, dtdx, dsdy, dtdy)
             else:
                 magnified, level0, level1, frac = _footprint_levels(sampler, table, dsdx, dtdx, dsdy, dtdy)
-                r, g, b, a = _texel_at(sampler, texels, table, _mix(w, u), _mix(w, v), magnified, level0, level1,
-                                       frac)
+                r, g, b, a = _texel_at(sampler, texels, table, s, t, magnified, level0, level1, frac)
             out[0, f], out[1, f], out[2, f], out[3, f] = r, g, b, a
 
     return _texels
@@ -556,11 +577,11 @@ def _make_map_texels(sources: str):
     variable (`softras.kernels.stamp.sources_stamp`)."""
 
     @numba.njit(cache=True, error_model="numpy")
-    def _map_texels(k, out_x, out_y, weights, corners, u, v, bump, bump_scale, sampler, texels, table, out):
+    def _map_texels(k, uvs, bump, bump_scale, sampler, texels, table, out):
         """The tangent-space normals of `softras.pipeline.render.mapped_normals`
         (exact) of a mapped triangle's k fragments of one band (arguments as
         `_texels`; the map's sampler, texels and table) into out (3, >= k):
-        `_texel` of the map at the fragment's (s, t) with its analytic
+        the map's texel (`_texel_at`, `_anisotropic`) at the fragment's (s, t) with its analytic
         derivatives, and `softras.pipeline.fragment.normal_map_normals` of it,
         or with ``bump`` `softras.pipeline.fragment.bump_normals`: the red
         channel at (s +- 1/W, t) and (s, t +- 1/H) (W x H the map's level 0)
@@ -568,9 +589,8 @@ def _make_map_texels(sources: str):
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
         step_s, step_t = 1.0 / table[0, 1], 1.0 / table[0, 2]
         for f in range(k):
-            w = (weights[0, f], weights[1, f], weights[2, f])
-            dsdx, dtdx, dsdy, dtdy = _st_derivatives(corners, u, v, out_x[f] + 0.5, out_y[f] + 0.5)
-            s, t = _mix(w, u), _mix(w, v)
+            s, t = uvs[0, f], uvs[1, f]
+            dsdx, dtdx, dsdy, dtdy = uvs[2, f], uvs[3, f], uvs[4, f], uvs[5, f]
             magnified, level0, level1, frac = False, np.int64(0), np.int64(0), 0.0
             if not sampler.aniso:
                 magnified, level0, level1, frac = _footprint_levels(sampler, table, dsdx, dtdx, dsdy, dtdy)
@@ -659,6 +679,7 @@ def _make_draw(sources: str):
             weights = np.empty((3, band_rows * width))          # the fragments' perspective weights,
             shade = np.empty((4, band_rows * width))             # texels, then colours
             tangent_normals = np.empty((3, band_rows * width))   # a normal or bump map's
+            uvs = np.empty((6, band_rows * width))               # (s, t) and their derivatives
             for band in range(thread, n_bands, n_threads):
                 top = band * band_rows
                 bottom = min(top + band_rows, height) - 1
@@ -692,11 +713,13 @@ def _make_draw(sources: str):
                         for f in range(k):
                             w = _weights_at(corners, out_x[f] + 0.5, out_y[f] + 0.5)
                             weights[0, f], weights[1, f], weights[2, f] = w[0], w[1], w[2]
+                    if textured or mapped != NO_MAP:
+                        _UV_AT(k, out_x, out_y, weights, corners, u, v, uvs)
                     if textured:
-                        _TEXELS(k, out_x, out_y, weights, corners, u, v, sampler, texels, table, shade)
+                        _TEXELS(k, uvs, sampler, texels, table, shade)
                     if mapped != NO_MAP:
-                        _MAP_TEXELS(k, out_x, out_y, weights, corners, u, v, mapped == BUMP_MAP, bump_scale,
-                                    map_sampler, map_texels, map_table, tangent_normals)
+                        _MAP_TEXELS(k, uvs, mapped == BUMP_MAP, bump_scale, map_sampler, map_texels, map_table,
+                                    tangent_normals)
                     # The fragments' colours, then their writes: two loops, the first free
                     # of the writes' tests and stores (SIMD; in one loop, colours and writes
                     # took 16 of the 8 blended layers' 30 ms); a draw that writes every
@@ -749,6 +772,7 @@ def _make_draw(sources: str):
 # The kernels, keyed on the kernels' sources and the stages' they call.
 _SOURCES = sources_stamp(rasterize, ops, texture, libm, texture_beyond)
 _ANISOTROPIC = _make_anisotropic(_SOURCES)
+_UV_AT = _make_uv_at(_SOURCES)
 _TEXELS = _make_texels(_SOURCES)
 _MAP_TEXELS = _make_map_texels(_SOURCES)
 _scratch = _Scratch()
