@@ -20,7 +20,8 @@ the stages' `draw_triangles`, on the same float64 buffers;
   `perspective_weights` (`softras.kernels.interpolate._weights_at`),
   `interpolate` (`_mix`), `depth_at_samples` (`softras.kernels.setup._depth_slopes`), for Phong
   `softras.pipeline.render.phong_attributes` and
-  `softras.pipeline.fragment.blinn_phong` (`softras.kernels.light._lit_point`),
+  `softras.pipeline.fragment.blinn_phong` (`_phong`: the tile kernels'
+  `softras.kernels.light._phong_colors` on a band's fragments as lanes),
   for a texture `softras.pipeline.render.uv_at_fragments`
   (`_uv_at`, `_st_derivatives`) and `softras.pipeline.texture.sample` (`_footprint_levels`,
   `_texel_at`; anisotropic: `_anisotropic`) or
@@ -56,8 +57,8 @@ import numpy as np
 
 from softras.kernels import exact_lines
 from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _triple, _weights_at
-from softras.kernels.light import (NO_LIGHTING, _lit_point, _perturb, _unit, base_colors, flat_corner_colors,
-                                   scene_lighting)
+from softras.kernels.lanes import _LF_LIT, _LF_MAP, _LF_W, _NLF
+from softras.kernels.light import NO_LIGHTING, _phong_colors, base_colors, flat_corner_colors, scene_lighting
 from softras.kernels.ops import _uses_depth
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
@@ -517,6 +518,27 @@ def exact_sampler(tex: texture.MipTexture):
     return sampler._replace(aniso=max(1, math.floor(tex.max_anisotropy)) if anisotropic else 0), texels
 
 
+def _make_phong(sources: str):
+    """The kernel `_phong`, with the cache key ``sources`` as a closure
+    variable (`softras.kernels.stamp.sources_stamp`)."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _phong(k, t, colors, lit, lf, lights, lighting, mapped):
+        """`softras.pipeline.render.phong_attributes` and
+        `softras.pipeline.fragment.blinn_phong` of triangle t's k fragments of
+        one band: the tile kernels' `softras.kernels.light._phong_colors`
+        (`_lit_point`'s operations per fragment, in passes over the fragments
+        that compile to SIMD), the fragments as its lanes: their perspective
+        weights in lf's _LF_W rows, a map's tangent-space normals in the
+        _LF_MAP rows; the lit straight colour into the _LF_LIT rows.  A
+        function of its own: inlined into `_draw`'s parallel loop, numba's
+        array analysis fails on it."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        _phong_colors(k, t, colors, lit, lf, lights, lighting, mapped)
+
+    return _phong
+
+
 def _make_uv_at(sources: str):
     """The kernel `_uv_at`, with the cache key ``sources`` as a closure
     variable (`softras.kernels.stamp.sources_stamp`)."""
@@ -680,6 +702,7 @@ def _make_draw(sources: str):
             shade = np.empty((4, band_rows * width))             # texels, then colours
             tangent_normals = np.empty((3, band_rows * width))   # a normal or bump map's
             uvs = np.empty((6, band_rows * width))               # (s, t) and their derivatives
+            lf = np.empty((_NLF, band_rows * width))             # Phong's rows, as the tile kernels' lanes
             for band in range(thread, n_bands, n_threads):
                 top = band * band_rows
                 bottom = min(top + band_rows, height) - 1
@@ -690,21 +713,14 @@ def _make_draw(sources: str):
                         continue
                     k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets,
                                          unit, out_x, out_y, out_mask, 0, True)
-                    # The triangle's values as scalars: corners, depth plane, corner colours,
-                    # and for Phong its corners' world positions and normals.
+                    # The triangle's values as scalars: corners, depth plane, corner colours
+                    # (Phong reads its corners' world positions and normals itself).
                     corners = Corners((window[t, 0, 0], window[t, 1, 0], window[t, 2, 0]),
                                       (window[t, 0, 1], window[t, 1, 1], window[t, 2, 1]),
                                       (inv_w[t, 0], inv_w[t, 1], inv_w[t, 2]))
                     x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
                     dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
                     cc = _corner_colors(colors, t)
-                    position = normal = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-                    tangent = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-                    if shading == PHONG:
-                        position = (_triple(lit, t, 0), _triple(lit, t, 1), _triple(lit, t, 2))
-                        normal = (_triple(lit, t, 3), _triple(lit, t, 4), _triple(lit, t, 5))
-                    if mapped != NO_MAP:
-                        tangent = (_triple(lit, t, 6), _triple(lit, t, 7), _triple(lit, t, 8), _triple(lit, t, 9))
                     u = v = (0.0, 0.0, 0.0)
                     if textured or mapped != NO_MAP:
                         u, v = _triple(uv, t, 0), _triple(uv, t, 1)
@@ -727,17 +743,14 @@ def _make_draw(sources: str):
                     # the per-sample tests (those layers: 31-40 -> 24-25 ms).
                     if shading == PHONG:
                         for f in range(k):
-                            w = (weights[0, f], weights[1, f], weights[2, f])
-                            nx, ny, nz = _unit(_mix(w, normal[0]), _mix(w, normal[1]), _mix(w, normal[2]))
-                            if mapped != NO_MAP:
-                                nx, ny, nz = _perturb(nx, ny, nz, _mix(w, tangent[0]), _mix(w, tangent[1]),
-                                                      _mix(w, tangent[2]), _mix(w, tangent[3]),
-                                                      tangent_normals[0, f], tangent_normals[1, f],
-                                                      tangent_normals[2, f])
-                            r, g, b = _lit_point(_mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, position[0]),
-                                                 _mix(w, position[1]), _mix(w, position[2]), nx, ny, nz, lights,
-                                                 lighting)
-                            _shade(shade, f, r, g, b, _mix(w, cc.a), textured)
+                            for c in range(3):
+                                lf[_LF_W + c, f] = weights[c, f]
+                                if mapped != NO_MAP:
+                                    lf[_LF_MAP + c, f] = tangent_normals[c, f]
+                        _PHONG(k, t, colors, lit, lf, lights, lighting, mapped != NO_MAP)
+                        for f in range(k):
+                            _shade(shade, f, lf[_LF_LIT, f], lf[_LF_LIT + 1, f], lf[_LF_LIT + 2, f], lf[_LF_LIT + 3, f],
+                                   textured)
                     else:
                         for f in range(k):
                             # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
@@ -772,6 +785,7 @@ def _make_draw(sources: str):
 # The kernels, keyed on the kernels' sources and the stages' they call.
 _SOURCES = sources_stamp(rasterize, ops, texture, libm, texture_beyond)
 _ANISOTROPIC = _make_anisotropic(_SOURCES)
+_PHONG = _make_phong(_SOURCES)
 _UV_AT = _make_uv_at(_SOURCES)
 _TEXELS = _make_texels(_SOURCES)
 _MAP_TEXELS = _make_map_texels(_SOURCES)
