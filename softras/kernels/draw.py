@@ -546,7 +546,8 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
     depths (vectorised), the depth test keeping the lanes with a passed
-    sample (scalar, without branches), perspective weights and colour bytes
+    sample (scalar, without branches; a draw without depth test or alpha
+    test keeps every lane, vectorised), perspective weights and colour bytes
     (vectorised), the writes (scalar); an alpha-tested draw's alpha test
     comes first, on weights at every lane.
 
@@ -567,7 +568,16 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     # (An int64 from the start: from a literal 0, numba typed `_phong_words`'
     # count as Literal[int](0) on its first pass and compiled it twice, 3 s.)
     kept = np.int64(0)
-    for l in range(n):
+    if not use_depth and not state.alpha_test:
+        # Nothing to test: every lane is kept with its coverage (a lane of no
+        # coverage, were one listed, is written nowhere), without the
+        # compaction's data-dependent stores (a loop LLVM vectorises).
+        for l in range(n):
+            li[_LI_PASS, l] = li[_LI_COV, l]
+            lf[_LF_CX, l] = li[_LI_PX, l] + 0.5
+            lf[_LF_CY, l] = li[_LI_PY, l] + 0.5
+        kept = np.int64(n)
+    for l in range(n if use_depth or state.alpha_test else 0):
         px, py = li[_LI_PX, l], li[_LI_PY, l]
         p = li[_LI_COV, l]
         if use_depth:
