@@ -510,7 +510,7 @@ def _make_anisotropic(sources: str):
 
 def exact_sampler(tex: texture.MipTexture):
     """`softras.kernels.texture.texture_tables` of a prepared texture for
-    `_texel`: float weights, and ``aniso`` the EXT spec's probe limit
+    `_texels` and `_map_texels`: float weights, and ``aniso`` the EXT spec's probe limit
     ``max(1, floor(max_anisotropy))`` where exact precision filters
     anisotropically (`softras.pipeline.texture.effective_anisotropy` > 1), else 0."""
     sampler, texels = texture_tables(tex, False)
