@@ -56,6 +56,12 @@ swapped cull mode (`softras.pipeline.setup.window_cull`).  A draw pays
 only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
 per-draw constants outside of the per-pixel work).
+
+Why one module of ~600 lines: the tile drivers (`_make_draw_tiles`), the
+tile functions they inline (`_flat_tile`, `_flat_block`; inside a
+driver's parallel loop numba gives their arrays ``noalias``, docs/speed.md,
+"Compile time") or call (`_textured_tile`), and the Python side that picks
+a driver and hands it its arrays are one compiled unit under one cache key.
 """
 
 from __future__ import annotations
@@ -568,16 +574,13 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     # (An int64 from the start: from a literal 0, numba typed `_phong_words`'
     # count as Literal[int](0) on its first pass and compiled it twice, 3 s.)
     kept = np.int64(0)
-    if not use_depth and not state.alpha_test:
-        # Nothing to test: every lane is kept with its coverage (a lane of no
-        # coverage, were one listed, is written nowhere), without the
-        # compaction's data-dependent stores (a loop LLVM vectorises).
+    tested = use_depth or state.alpha_test
+    if not tested:          # every lane kept with its coverage, in a loop LLVM vectorises (no compaction)
         for l in range(n):
             li[_LI_PASS, l] = li[_LI_COV, l]
-            lf[_LF_CX, l] = li[_LI_PX, l] + 0.5
-            lf[_LF_CY, l] = li[_LI_PY, l] + 0.5
+            lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
         kept = np.int64(n)
-    for l in range(n if use_depth or state.alpha_test else 0):
+    for l in range(n if tested else 0):
         px, py = li[_LI_PX, l], li[_LI_PY, l]
         p = li[_LI_COV, l]
         if use_depth:
