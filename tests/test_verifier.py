@@ -131,6 +131,7 @@ def test_spec_passes_softras_against_gl_and_fails_planted_bugs():
     assert bad_ref.verdict == verifier.FAIL and bad_ref.reasons[0].startswith("the reference: 1 px")
 
 
+@pytest.mark.gl
 def test_bounds_computed_once_judge_as_verify_computes_them():
     """``verify(..., bounds=spec_bounds(scene, caps))`` gives every picture of
     the scene the verdict, reasons and figures of a verify that renders the
