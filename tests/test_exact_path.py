@@ -24,7 +24,7 @@ from softras.kernels import exact, exact_lines
 from softras.pipeline import render as stages
 from softras.pipeline import sampling, texture_beyond
 from softras.renderer import render_scene
-from test_fastpath import lit_scene, mapped_scene, random_line_scene, random_scene
+from test_fastpath import lit_scene, mapped_scene, random_line_scene, random_scene, stretched_uvs
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
 
@@ -143,9 +143,7 @@ def test_every_texture_filter_on_stretched_uvs_gives_the_stages_samples(name):
     at the analytic derivatives) on uvs scaled up to 20x along one axis: the
     ripmap's and EWA's levels, EWA's eccentricity cap and level blend;
     anisotropic textures too (a ``texture_filter`` ignores max_anisotropy)."""
-    data = random_scene(9, textured=True)
-    for k, node in enumerate(data["nodes"]):
-        node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
+    data = stretched_uvs(random_scene(9, textured=True))
     for k, tex in enumerate(data["textures"].values()):
         tex["max_anisotropy"] = [1, 8][k % 2]
     assert_same_samples(softras.load_scene(data), f"texture_filter {name}", samples=4, texture_filter=name)
@@ -226,9 +224,7 @@ def test_anisotropic_filtering_gives_the_stages_samples(anisotropy, map_key):
     probe at the longer axis' lambda); a normal or bump map (the bump-mapped
     plane in perspective) filtered so too."""
     if map_key is None:
-        data = random_scene(11, textured=True)
-        for k, node in enumerate(data["nodes"]):
-            node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
+        data = stretched_uvs(random_scene(11, textured=True))
     else:
         data = mapped_plane(map_key)
     for tex in data["textures"].values():

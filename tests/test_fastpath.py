@@ -471,6 +471,14 @@ def test_random_textured_scenes_are_bit_identical(seed, fixed_point):
                 f"random textured scene seed {100 + seed}, fixed point {fixed_point}")
 
 
+def stretched_uvs(data: dict) -> dict:
+    """A random scene's nodes with their uvs scaled 20x along u, 20x along v
+    and 3x both, in turn: minified along one axis, magnified along the other."""
+    for k, node in enumerate(data["nodes"]):
+        node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
+    return data
+
+
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("samples", [1, 4])
 @pytest.mark.parametrize("name", texture_beyond.FILTERS)
@@ -484,9 +492,7 @@ def test_random_beyond_filter_scenes_are_bit_identical(name, seed, samples):
     eccentricity cap, its levels and their blend, its empty ellipses on
     the degenerate and w ~ 0 triangles); even seeds name the textures one
     by one, some left to their own filter."""
-    data = random_scene(300 + seed, textured=True)
-    for k, node in enumerate(data["nodes"]):
-        node["mesh"]["uvs"] = (np.asarray(node["mesh"]["uvs"]) * [[1, 20], [20, 1], [3, 3]][k % 3]).tolist()
+    data = stretched_uvs(random_scene(300 + seed, textured=True))
     scene = softras.load_scene(data)
     option = name if seed % 2 else {texture: [name, None][k % 2] for k, texture in enumerate(sorted(scene.textures))}
     assert fastpath.unsupported(scene, precision="gl", clipping=None) is None

@@ -261,7 +261,8 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize, libm, texture_beyond)
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize, clip_stage)]
     assert exact_key == [stamp.sources_stamp(rasterize, ops, texture, libm, texture_beyond)]
-    assert key(k_exact._TEXELS) == key(k_exact._ANISOTROPIC) == exact_key
+    for kernel in (k_exact._ANISOTROPIC, k_exact._PHONG, k_exact._UV_AT, k_exact._TEXELS, k_exact._MAP_TEXELS):
+        assert key(kernel) == exact_key, kernel
     assert key(k_beyond._beyond_texel) == [stamp.sources_stamp(texture, libm, texture_beyond)]
     for loop in (k_light._vertex_lighting, k_light._face_lighting):
         assert [cell.cell_contents for cell in loop.py_func.__closure__] == [stamp.sources_stamp(libm)]

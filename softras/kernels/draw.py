@@ -574,26 +574,26 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     # (An int64 from the start: from a literal 0, numba typed `_phong_words`'
     # count as Literal[int](0) on its first pass and compiled it twice, 3 s.)
     kept = np.int64(0)
-    tested = use_depth or state.alpha_test
-    if not tested:          # every lane kept with its coverage, in a loop LLVM vectorises (no compaction)
+    if not (use_depth or state.alpha_test):     # every lane kept with its coverage: no compaction (SIMD)
         for l in range(n):
             li[_LI_PASS, l] = li[_LI_COV, l]
             lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
         kept = np.int64(n)
-    for l in range(n if tested else 0):
-        px, py = li[_LI_PX, l], li[_LI_PY, l]
-        p = li[_LI_COV, l]
-        if use_depth:
-            p = _depth_test_lane(p, li, l, depth, py, px, depth_func, write_z, n_samples)
-        li[_LI_PX, kept] = px
-        li[_LI_PY, kept] = py
-        li[_LI_PASS, kept] = p
-        lf[_LF_CX, kept] = px + 0.5
-        lf[_LF_CY, kept] = py + 0.5
-        if state.alpha_test:                # (its weights, computed above, go with the lane)
-            for c in range(3):
-                lf[_LF_W + c, kept] = lf[_LF_W + c, l]
-        kept += p != 0
+    else:
+        for l in range(n):
+            px, py = li[_LI_PX, l], li[_LI_PY, l]
+            p = li[_LI_COV, l]
+            if use_depth:
+                p = _depth_test_lane(p, li, l, depth, py, px, depth_func, write_z, n_samples)
+            li[_LI_PX, kept] = px
+            li[_LI_PY, kept] = py
+            li[_LI_PASS, kept] = p
+            lf[_LF_CX, kept] = px + 0.5
+            lf[_LF_CY, kept] = py + 0.5
+            if state.alpha_test:            # (its weights, computed above, go with the lane)
+                for c in range(3):
+                    lf[_LF_W + c, kept] = lf[_LF_W + c, l]
+            kept += p != 0
     if not state.alpha_test and not state.flat:
         _lane_weights(kept, t, tri_f, lf, uv, False)
     if state.lit:

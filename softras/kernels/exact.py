@@ -698,11 +698,14 @@ def _make_draw(sources: str):
             out_y = np.empty(band_rows * width, np.int32)
             out_mask = np.empty(band_rows * width, np.uint32)
             box = np.empty(4, np.int64)
-            weights = np.empty((3, band_rows * width))          # the fragments' perspective weights,
+            # The fragments' rows as the tile kernels' lanes (`_phong` reads the
+            # weights and a map's normals there): their perspective weights,
+            # a normal or bump map's tangent-space normals, then Phong's own.
+            lf = np.empty((_NLF, band_rows * width))
+            weights = lf[_LF_W:_LF_W + 3]
+            tangent_normals = lf[_LF_MAP:_LF_MAP + 3]
             shade = np.empty((4, band_rows * width))             # texels, then colours
-            tangent_normals = np.empty((3, band_rows * width))   # a normal or bump map's
             uvs = np.empty((6, band_rows * width))               # (s, t) and their derivatives
-            lf = np.empty((_NLF, band_rows * width))             # Phong's rows, as the tile kernels' lanes
             for band in range(thread, n_bands, n_threads):
                 top = band * band_rows
                 bottom = min(top + band_rows, height) - 1
@@ -742,11 +745,6 @@ def _make_draw(sources: str):
                     # covered pixel at one sample (no depth, no alpha test) writes without
                     # the per-sample tests (those layers: 31-40 -> 24-25 ms).
                     if shading == PHONG:
-                        for f in range(k):
-                            for c in range(3):
-                                lf[_LF_W + c, f] = weights[c, f]
-                                if mapped != NO_MAP:
-                                    lf[_LF_MAP + c, f] = tangent_normals[c, f]
                         _PHONG(k, t, colors, lit, lf, lights, lighting, mapped != NO_MAP)
                         for f in range(k):
                             _shade(shade, f, lf[_LF_LIT, f], lf[_LF_LIT + 1, f], lf[_LF_LIT + 2, f], lf[_LF_LIT + 3, f],
