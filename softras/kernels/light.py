@@ -29,7 +29,7 @@ from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, 
                                    _LF_W, _LI_WORD)
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import fragment, libm, render, vertex
-from softras.pipeline.libm import _power
+from softras.pipeline.libm import _power, _power_by, _whole_exponent, _whole_power
 
 # The eye (world space) and the material's Blinn-Phong terms, as scalars.
 Lighting = namedtuple("Lighting", ["eye_x", "eye_y", "eye_z", "ambient", "diffuse", "specular", "shininess"])
@@ -104,9 +104,11 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
     `softras.pipeline.fragment.blinn_phong` with the light table (L, _NL)
     and the `Lighting`.  In passes over the lanes, each of which compiles
     to SIMD: the interpolation; the perturbation; per light its vectors,
-    then the power (`softras.pipeline.libm._power`, no library call), then
+    then the power (`softras.pipeline.libm._power_by`: binary powering for
+    a whole shininess below 256, else `_power`; no library call), then
     its term."""
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
+    whole = _whole_exponent(shininess)
     cc = _corner_colors(colors, t)
     px3, py3, pz3 = _triple(lit, t, 0), _triple(lit, t, 1), _triple(lit, t, 2)
     nx3, ny3, nz3 = _triple(lit, t, 3), _triple(lit, t, 4), _triple(lit, t, 5)
@@ -139,8 +141,12 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
                 ox, oy, oz, ow, lf[_LF_POS, l], lf[_LF_POS + 1, l], lf[_LF_POS + 2, l],
                 lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l],
                 lf[_LF_VIEW, l], lf[_LF_VIEW + 1, l], lf[_LF_VIEW + 2, l])
-        for l in range(n):
-            lf[_LF_SPEC, l] = specular * _power(lf[_LF_SPEC, l], shininess)
+        if whole:                           # (one SIMD loop or the other: `libm._power_by`)
+            for l in range(n):
+                lf[_LF_SPEC, l] = specular * _whole_power(lf[_LF_SPEC, l], whole)
+        else:
+            for l in range(n):
+                lf[_LF_SPEC, l] = specular * _power(lf[_LF_SPEC, l], shininess)
         for l in range(n):
             w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
             n_dot_l, spec = lf[_LF_NDL, l], lf[_LF_SPEC, l]
@@ -220,7 +226,7 @@ def _lit_point(r, g, b, px, py, pz, nx, ny, nz, lights, lighting):
     for j in range(lights.shape[0]):
         n_dot_l, n_dot_h = _light_dots(lights[j, _L_VECTOR], lights[j, _L_VECTOR + 1], lights[j, _L_VECTOR + 2],
                                        lights[j, _L_VECTOR + 3], px, py, pz, nx, ny, nz, vx, vy, vz)
-        spec = specular * _power(n_dot_h, shininess)
+        spec = specular * _power_by(n_dot_h, shininess, _whole_exponent(shininess))
         out_r = out_r + _light_term(lights[j, _L_COLOR], diffuse, n_dot_l, r, spec)
         out_g = out_g + _light_term(lights[j, _L_COLOR + 1], diffuse, n_dot_l, g, spec)
         out_b = out_b + _light_term(lights[j, _L_COLOR + 2], diffuse, n_dot_l, b, spec)
