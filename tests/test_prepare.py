@@ -125,7 +125,7 @@ def test_wait_mode_prepares_first_and_marks_ready(fresh_cache, started, monkeypa
     textured = softras.load_scene(prepare.preparation_scene(1, True))
     render_scene(textured, samples=4)
     assert started == []
-    assert prepare.ready((4, True)) and not prepare.ready((1, True))
+    assert prepare.ready((0, True)) and not prepare.ready((1, True))
     monkeypatch.setenv(prepare.ENV, prepare.MODE_BACKGROUND)       # ready: no background process
     render_scene(textured, samples=4)
     assert started == []
@@ -154,10 +154,30 @@ def test_exact_precision_draws_with_the_stages_while_its_kernels_compile(fresh_c
 
 
 def test_variant_names_round_trip():
-    every = [(1, False), (4, True), (0, True), prepare.EXACT, prepare.LINES]
+    every = [(1, False), (4, False), (0, True), prepare.EXACT, prepare.LINES]
     for variant in every:
         assert prepare.parse(prepare.name(variant)) == variant
-    assert [prepare.name(v) for v in every] == ["1u", "4t", "0t", "exact", "lines"]
+    assert [prepare.name(v) for v in every] == ["1u", "4u", "0t", "exact", "lines"]
+    assert sorted(map(prepare.name, fastpath._DRAW_TILES)) == ["0t", "0u", "1t", "1u", "4u"]
+
+
+def test_a_name_that_is_no_variant_is_one_line_and_status_2(capsys):
+    """A textured draw at 4 samples takes the driver of any count: there is no "4t"."""
+    for text in ("4t", "2u", "x"):
+        with pytest.raises(ValueError, match="no kernel variant"):
+            prepare.parse(text)
+    with pytest.raises(SystemExit) as exit_info:
+        prepare.main(["1u", "4t"])
+    assert exit_info.value.code == 2
+    assert "no kernel variant '4t'" in capsys.readouterr().err
+
+
+def test_a_textured_scene_at_4_samples_needs_the_driver_of_any_count():
+    textured = softras.load_scene(prepare.preparation_scene(1, True, lines=False))
+    assert prepare.variants(textured, 4) == {(0, True)}
+    assert prepare.variants(textured, 1) == {(1, True)}
+    untextured = softras.load_scene(prepare.preparation_scene(1, False, lines=False))
+    assert prepare.variants(untextured, 4) == {(4, False)}
 
 
 def test_the_exact_preparation_reaches_every_exact_kernel(tmp_path):
@@ -212,8 +232,8 @@ def test_one_process_prepares_a_variant_at_a_time(fresh_cache, monkeypatch):
         assert held
         assert not prepare.start_background([(1, False)])
     assert spawned == []
-    assert prepare.start_background([(1, False), (4, True)])
-    assert spawned[0][-2:] == ["1u", "4t"] and spawned[0][1:3] == ["-m", "softras.kernels.prepare"]
+    assert prepare.start_background([(1, False), (0, True)])
+    assert spawned[0][-2:] == ["1u", "0t"] and spawned[0][1:3] == ["-m", "softras.kernels.prepare"]
 
 
 def test_the_prepare_command_marks_its_variants(fresh_cache):
@@ -375,4 +395,4 @@ def test_a_normal_or_bump_map_needs_the_textured_driver():
     scene = softras.load_scene(SCENES_DIR / "bump_mapped_plane.json")
     assert any(d.material.bump_map is not None and d.material.texture is None for d in scene.draws)
     assert prepare.variants(scene, 1) == {(1, True)}
-    assert prepare.variants(scene, 4) == {(4, True)}
+    assert prepare.variants(scene, 4) == {(0, True)}

@@ -256,7 +256,8 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
                            and plain_colors(base)), flat, lit,
                       cutoff is not None, float(cutoff or 0.0), material.texture is not None, mapped,
                       float(material.bump_scale))
-    draw_tiles = _DRAW_TILES[driver_samples(len(offsets)), textured(material)]
+    is_textured = textured(material)
+    draw_tiles = _DRAW_TILES[driver_samples(len(offsets), is_textured), is_textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
                map_sampler, tuple(map_texels), lights, tuple(lighting), n_threads)
@@ -277,21 +278,26 @@ def scratch_nbytes() -> int:
 
 # The tile drivers' sample counts (`driver_samples`): GL's 1 and 4, unrolled
 # (4 draws the 24k grid 14-16 % faster so, docs/speed.md), and ANY_SAMPLES,
-# any other count of a pass, read at run time.
+# any other count of a pass, read at run time.  Textured draws have no
+# driver of their own for 4: at 4 samples the driver of any count draws
+# them 4-7 % slower, and a fresh clone compiles 66 s less (docs/speed.md,
+# "Twenty-fourth round").
 ANY_SAMPLES = 0
 DRIVER_SAMPLES = (1, 4, ANY_SAMPLES)
+TEXTURED_DRIVER_SAMPLES = (1, ANY_SAMPLES)
 
 
-def driver_samples(samples: int) -> int:
-    """The tile driver that draws ``samples`` samples a pixel: 1, 4 or ANY_SAMPLES."""
-    return samples if samples in (1, 4) else ANY_SAMPLES
+def driver_samples(samples: int, is_textured: bool) -> int:
+    """The tile driver that draws ``samples`` samples a pixel, untextured
+    (1, 4 or ANY_SAMPLES) or textured (1 or ANY_SAMPLES)."""
+    return samples if samples in (TEXTURED_DRIVER_SAMPLES if is_textured else DRIVER_SAMPLES) else ANY_SAMPLES
 
 
 def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
     the parallel tile driver compiled for one sample count (`DRIVER_SAMPLES`:
-    1, 4, or ANY_SAMPLES for the count of the draw's sample table) and textured
-    or not, as constants (closure variables are compile-time constants to
+    1, 4, or ANY_SAMPLES for the count of the draw's sample table;
+    `TEXTURED_DRIVER_SAMPLES` when textured) and textured or not, as constants (closure variables are compile-time constants to
     numba, and part of its cache key): the compiler unrolls the per-sample
     loops of 1 and 4 and drops the texture code from untextured draws, and a
     scene compiles only the variants it uses.  sources : `softras.kernels.stamp.sources_stamp`,
@@ -610,4 +616,5 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
 # softras.pipeline.rasterize, `ewa_ellipse` of softras.pipeline.texture_beyond).
 _SOURCES = sources_stamp(ops, texture, rasterize, libm, texture_beyond)
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
-               for n_samples in DRIVER_SAMPLES for textured in (False, True)}
+               for textured in (False, True)
+               for n_samples in (TEXTURED_DRIVER_SAMPLES if textured else DRIVER_SAMPLES)}

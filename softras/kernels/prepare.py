@@ -77,13 +77,13 @@ def variants(scene, samples: int) -> set:
     """The variants that a scene which `softras.kernels.draw.unsupported`
     accepts needs at ``samples`` drawn in the stages' passes: the tile
     drivers (driver samples, textured) of its triangle draws
-    (`softras.kernels.draw.driver_samples` of each pass: 1, 4, or 0 for any
-    other count), and LINES if it draws lines (a wireframe alone waited 20-40 s
+    (`softras.kernels.draw.driver_samples` of each pass: 1, 4 (untextured),
+    or 0 for any other count), and LINES if it draws lines (a wireframe alone waited 20-40 s
     for the line kernel, silently, when it was compiled in the render)."""
     from softras.kernels.draw import driver_samples, textured
     from softras.pipeline.sampling import sample_passes
 
-    needed = {(driver_samples(stop - start), textured(draw.material))
+    needed = {(driver_samples(stop - start, textured(draw.material)), textured(draw.material))
               for start, stop in sample_passes(samples) for draw in scene.draws if draw.mesh.primitive == "triangles"}
     if any(draw.mesh.primitive == "lines" for draw in scene.draws):
         needed.add(LINES)
@@ -124,8 +124,8 @@ def _own_cache_dir() -> Path:
 
 def name(variant) -> str:
     """A variant's name in marks and on the command line: "1u" (1 sample,
-    untextured), "4t" (4, textured), "0t" (any other count), "exact" or
-    "lines"."""
+    untextured), "4u" (4, untextured), "1t" (1, textured), "0t" (any other
+    count, textured), "exact" or "lines"."""
     if variant in _NAMED:
         return variant
     samples, textured = variant
@@ -133,8 +133,17 @@ def name(variant) -> str:
 
 
 def parse(text: str):
-    """The variant named ``text`` (`name`'s inverse)."""
-    return text if text in _NAMED else (int(text[:-1]), text[-1] == "t")
+    """The variant named ``text`` (`name`'s inverse); ValueError for a name
+    that is no variant (the tile drivers are `softras.kernels.draw._DRAW_TILES`' keys)."""
+    from softras.kernels import draw
+
+    if text in _NAMED:
+        return text
+    known = {name(v): v for v in draw._DRAW_TILES}
+    if text not in known:
+        raise ValueError(f"no kernel variant {text!r}: expected one of "
+                         f"{', '.join(sorted(known) + list(_NAMED))}")
+    return known[text]
 
 
 def _mark(variant) -> Path:
@@ -307,11 +316,15 @@ def main(argv: list[str] | None = None) -> int:
     at low priority."""
     parser = argparse.ArgumentParser(prog="python -m softras.kernels.prepare", description=main.__doc__)
     parser.add_argument("variants", nargs="+",
-                        help="e.g. 1u (1 sample, untextured), 4t (4, textured), 0t (any other count), "
-                             "exact (the exact-precision kernels) or lines (the gl line kernel)")
+                        help="e.g. 1u (1 sample, untextured), 4u (4, untextured), 0t (any other count, "
+                             "textured), exact (the exact-precision kernels) or lines (the gl line kernel)")
     args = parser.parse_args(argv)
-    for text in args.variants:
-        prepare(parse(text))
+    try:
+        chosen = [parse(text) for text in args.variants]
+    except ValueError as error:
+        parser.error(str(error))                # (one line, exit status 2)
+    for variant in chosen:
+        prepare(variant)
     return 0
 
 
