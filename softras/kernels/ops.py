@@ -18,7 +18,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from softras.kernels.lanes import _LI_PASS, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
+from softras.kernels.lanes import _LI_DST, _LI_PASS, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _ONE_LANES, _spread, _unspread
 from softras.pipeline import ops as ops_stage
 from softras.pipeline.ops import blend_byte
@@ -105,9 +105,31 @@ def _depth_pass_k(func, k, stored):
 def _write_lanes(n, li, color32, blend, n_samples):
     """The writes of `softras.pipeline.ops.apply_fragments`: store or blend the
     n lanes' RGBA8 words into their passed samples (`_write_word` per lane,
-    scalar; a draw without blending at one sample stores each passed lane's
-    word directly: 4 % off the large triangles of the bench's few_large)."""
-    if blend == 0 and n_samples == 1:
+    scalar).  At one sample each passed lane's word is stored directly (4 %
+    off the large triangles of the bench's few_large), and a blending
+    draw's words are blended first: the passed lanes' stored words gathered
+    into the _LI_DST row, then `_blend_word` per lane, in a loop of its own
+    for each spread-lane equation ("over", "over_straight": its mode a
+    constant there, so LLVM vectorises the loop; 6.0 -> 4.5 ns a lane).
+    The lanes are distinct pixels (one triangle's, or one block's quads),
+    so no lane reads a word another lane writes."""
+    if n_samples == 1:
+        if blend != 0:
+            for l in range(n):
+                passed = li[_LI_PASS, l] != 0          # (a helper pixel may lie outside the picture)
+                li[_LI_DST, l] = np.int64(color32[li[_LI_PY, l], li[_LI_PX, l], 0]) if passed else 0
+            if blend == 1:
+                for l in range(n):
+                    word = li[_LI_WORD, l]
+                    li[_LI_WORD, l] = _blend_word(1, word, li[_LI_DST, l], (word >> 24) & 255)
+            elif blend == 2:
+                for l in range(n):
+                    word = li[_LI_WORD, l]
+                    li[_LI_WORD, l] = _blend_word(2, word, li[_LI_DST, l], (word >> 24) & 255)
+            else:
+                for l in range(n):
+                    word = li[_LI_WORD, l]
+                    li[_LI_WORD, l] = _blend_word(blend, word, li[_LI_DST, l], (word >> 24) & 255)
         for l in range(n):
             if li[_LI_PASS, l]:
                 color32[li[_LI_PY, l], li[_LI_PX, l], 0] = np.uint32(li[_LI_WORD, l])
