@@ -297,7 +297,8 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
     the parallel tile driver compiled for one sample count (`DRIVER_SAMPLES`:
     1, 4, or ANY_SAMPLES for the count of the draw's sample table;
-    `TEXTURED_DRIVER_SAMPLES` when textured) and textured or not, as constants (closure variables are compile-time constants to
+    `TEXTURED_DRIVER_SAMPLES` when textured) and textured or not, as
+    constants (closure variables are compile-time constants to
     numba, and part of its cache key): the compiler unrolls the per-sample
     loops of 1 and 4 and drops the texture code from untextured draws, and a
     scene compiles only the variants it uses.  sources : `softras.kernels.stamp.sources_stamp`,

@@ -8,8 +8,8 @@ filters and maps they share), 95-122 s for the exact kernels
 (`softras.kernels.exact`, the variant `EXACT`) and about 17 s for the gl
 line kernel (`softras.kernels.lines`, the variant `LINES`); 8.5 minutes in
 all in the twenty-third round, some 66 s less since textured draws at 4
-samples take the driver of any count (docs/speed.md, "Twenty-fourth round").  The readable
-stages give the same bytes (tests/test_fastpath.py,
+samples take the driver of any count (docs/speed.md, "Twenty-fourth
+round").  The readable stages give the same bytes (tests/test_fastpath.py,
 tests/test_exact_path.py) and compile in seconds, so a render need not
 wait: `ensure` either
 
