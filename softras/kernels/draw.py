@@ -283,22 +283,20 @@ def scratch_nbytes() -> int:
 # them 4-7 % slower, and a fresh clone compiles 66 s less (docs/speed.md,
 # "Twenty-fourth round").
 ANY_SAMPLES = 0
-DRIVER_SAMPLES = (1, 4, ANY_SAMPLES)
-TEXTURED_DRIVER_SAMPLES = (1, ANY_SAMPLES)
+DRIVER_SAMPLES = {False: (1, 4, ANY_SAMPLES), True: (1, ANY_SAMPLES)}      # untextured, textured
 
 
 def driver_samples(samples: int, is_textured: bool) -> int:
     """The tile driver that draws ``samples`` samples a pixel, untextured
-    (1, 4 or ANY_SAMPLES) or textured (1 or ANY_SAMPLES)."""
-    return samples if samples in (TEXTURED_DRIVER_SAMPLES if is_textured else DRIVER_SAMPLES) else ANY_SAMPLES
+    (1, 4 or ANY_SAMPLES) or textured (1 or ANY_SAMPLES): `DRIVER_SAMPLES`."""
+    return samples if samples in DRIVER_SAMPLES[is_textured] else ANY_SAMPLES
 
 
 def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
     the parallel tile driver compiled for one sample count (`DRIVER_SAMPLES`:
-    1, 4, or ANY_SAMPLES for the count of the draw's sample table;
-    `TEXTURED_DRIVER_SAMPLES` when textured) and textured or not, as
-    constants (closure variables are compile-time constants to
+    1, 4 (untextured), or ANY_SAMPLES for the count of the draw's sample
+    table) and textured or not, as constants (closure variables are compile-time constants to
     numba, and part of its cache key): the compiler unrolls the per-sample
     loops of 1 and 4 and drops the texture code from untextured draws, and a
     scene compiles only the variants it uses.  sources : `softras.kernels.stamp.sources_stamp`,
@@ -617,5 +615,4 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
 # softras.pipeline.rasterize, `ewa_ellipse` of softras.pipeline.texture_beyond).
 _SOURCES = sources_stamp(ops, texture, rasterize, libm, texture_beyond)
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
-               for textured in (False, True)
-               for n_samples in (TEXTURED_DRIVER_SAMPLES if textured else DRIVER_SAMPLES)}
+               for textured, counts in DRIVER_SAMPLES.items() for n_samples in counts}

@@ -724,16 +724,13 @@ def _make_draw(sources: str):
                     x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
                     dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
                     cc = _corner_colors(colors, t)
-                    u = v = (0.0, 0.0, 0.0)
-                    if textured or mapped != NO_MAP:
-                        u, v = _triple(uv, t, 0), _triple(uv, t, 1)
                     # The perspective weights of all k fragments first: a loop LLVM vectorises.
                     if shading != FLAT or textured:
                         for f in range(k):
                             w = _weights_at(corners, out_x[f] + 0.5, out_y[f] + 0.5)
                             weights[0, f], weights[1, f], weights[2, f] = w[0], w[1], w[2]
                     if textured or mapped != NO_MAP:
-                        _UV_AT(k, out_x, out_y, weights, corners, u, v, uvs)
+                        _UV_AT(k, out_x, out_y, weights, corners, _triple(uv, t, 0), _triple(uv, t, 1), uvs)
                     if textured:
                         _TEXELS(k, uvs, sampler, texels, table, shade)
                     if mapped != NO_MAP:

@@ -29,7 +29,7 @@ from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, 
                                    _LF_W, _LI_WORD)
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import fragment, libm, render, vertex
-from softras.pipeline.libm import _power, _power_by, _whole_exponent, _whole_power
+from softras.pipeline.libm import _power_by, _whole_exponent
 
 # The eye (world space) and the material's Blinn-Phong terms, as scalars.
 Lighting = namedtuple("Lighting", ["eye_x", "eye_y", "eye_z", "ambient", "diffuse", "specular", "shininess"])
@@ -141,12 +141,8 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
                 ox, oy, oz, ow, lf[_LF_POS, l], lf[_LF_POS + 1, l], lf[_LF_POS + 2, l],
                 lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l],
                 lf[_LF_VIEW, l], lf[_LF_VIEW + 1, l], lf[_LF_VIEW + 2, l])
-        if whole:                           # (one SIMD loop or the other: `libm._power_by`)
-            for l in range(n):
-                lf[_LF_SPEC, l] = specular * _whole_power(lf[_LF_SPEC, l], whole)
-        else:
-            for l in range(n):
-                lf[_LF_SPEC, l] = specular * _power(lf[_LF_SPEC, l], shininess)
+        for l in range(n):
+            lf[_LF_SPEC, l] = specular * _power_by(lf[_LF_SPEC, l], shininess, whole)
         for l in range(n):
             w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
             n_dot_l, spec = lf[_LF_NDL, l], lf[_LF_SPEC, l]

@@ -118,18 +118,12 @@ def _write_lanes(n, li, color32, blend, n_samples):
             for l in range(n):
                 passed = li[_LI_PASS, l] != 0          # (a helper pixel may lie outside the picture)
                 li[_LI_DST, l] = np.int64(color32[li[_LI_PY, l], li[_LI_PX, l], 0]) if passed else 0
-            if blend == 1:
-                for l in range(n):
-                    word = li[_LI_WORD, l]
-                    li[_LI_WORD, l] = _blend_word(1, word, li[_LI_DST, l], (word >> 24) & 255)
+            if blend == 1:                      # (the equation a constant in each copy)
+                _blend_lanes(n, li, 1)
             elif blend == 2:
-                for l in range(n):
-                    word = li[_LI_WORD, l]
-                    li[_LI_WORD, l] = _blend_word(2, word, li[_LI_DST, l], (word >> 24) & 255)
+                _blend_lanes(n, li, 2)
             else:
-                for l in range(n):
-                    word = li[_LI_WORD, l]
-                    li[_LI_WORD, l] = _blend_word(blend, word, li[_LI_DST, l], (word >> 24) & 255)
+                _blend_lanes(n, li, blend)
         for l in range(n):
             if li[_LI_PASS, l]:
                 color32[li[_LI_PY, l], li[_LI_PX, l], 0] = np.uint32(li[_LI_WORD, l])
@@ -138,6 +132,16 @@ def _write_lanes(n, li, color32, blend, n_samples):
         p = li[_LI_PASS, l]
         if p:
             _write_word(color32, li[_LI_PY, l], li[_LI_PX, l], p, n_samples, blend, li[_LI_WORD, l])
+
+
+@numba.njit(cache=True, inline="always")
+def _blend_lanes(n, li, blend):
+    """`_blend_word` of each of the n lanes' words (_LI_WORD) over its stored
+    word (_LI_DST), into _LI_WORD: a loop LLVM vectorises where ``blend`` is
+    a constant (`_write_lanes` calls it with 1 and 2)."""
+    for l in range(n):
+        word = li[_LI_WORD, l]
+        li[_LI_WORD, l] = _blend_word(blend, word, li[_LI_DST, l], (word >> 24) & 255)
 
 
 @numba.njit(cache=True, inline="always")

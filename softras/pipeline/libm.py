@@ -20,7 +20,7 @@ at most 3 ulp where |y ln x| <= 1, and at most 3.5 ulp per unit of
 |y ln x| beyond (the rounding of ln x, scaled by y).  A whole exponent
 below 256 (Phong's usual shininess) takes `_whole_power` instead, binary
 powering: within n - 1 ulp of x^n, at a tenth of the cost (`_power_by`
-chooses; `power` and the kernels' Phong loops choose once per loop).
+chooses).
 `_log2` is C's
 (exact precision's level of detail, not a hot loop).  (Were numba given
 Intel's SVML, with the icc_rt package, LLVM could vectorise `_log2`'s
@@ -190,8 +190,10 @@ def _whole_power(x, n):
 def _power_by(x, y, n):
     """x ** y (`_whole_power` for n = `_whole_exponent(y)` when it is not 0,
     else `_power`): the pow of the stages and the kernels alike.  A loop
-    over x with one y computes n once and tests it outside (`_power_loop`,
-    `softras.kernels.light._phong_colors`), so that each loop is SIMD."""
+    over x with one y computes n once (`_power_loop`,
+    `softras.kernels.light._phong_colors`): LLVM then takes the test of n
+    out of the loop, and the loop is SIMD (1.9 ns a value at n = 32, 1.6
+    with a loop of its own for each side; 15 ns off whole exponents)."""
     return _whole_power(x, n) if n else _power(x, y)
 
 
@@ -204,12 +206,8 @@ def _log2(x):
 @numba.njit(cache=True, error_model="numpy")
 def _power_loop(x, y, out):
     n = _whole_exponent(y)
-    if n:
-        for i in range(x.size):
-            out[i] = _whole_power(x[i], n)
-    else:
-        for i in range(x.size):
-            out[i] = _power(x[i], y)
+    for i in range(x.size):
+        out[i] = _power_by(x[i], y, n)
 
 
 @numba.njit(cache=True, error_model="numpy")
