@@ -267,7 +267,7 @@ def perspective_off():
     derivatives interpolated without perspective correction."""
     from softras.pipeline import interpolate
 
-    with _patched(interpolate, "perspective_weights", lambda lam, inv_w: np.array(lam, dtype=np.float64)):
+    with _patched(interpolate, "perspective_weights", lambda lam, inv_w: lam / lam.sum(axis=1, keepdims=True)):
         yield
 
 

@@ -752,6 +752,36 @@ def test_lane_depths_round_like_the_float_depth():
             assert li[k_lanes._LI_Z, l] == (-1 if np.isnan(z) else int(z)), (z0, dzdx, l)
 
 
+def test_lane_weights_are_the_stages_to_the_bit():
+    """`_lane_weights` (`_weights_at`): the perspective weights are
+    `interpolate.perspective_weights` of `interpolate.edge_functions` and the
+    (s, t) `interpolate.interpolate` of the corner uvs under them, bit for
+    bit, on random triangles (1/w over three decades) at pixel centres
+    inside and outside.  (The pictures alone did not tell the weights of
+    normalised barycentrics from these: a colour byte moves only where a
+    value lies within an ulp or two of a rounding boundary.)"""
+    from softras.pipeline import interpolate
+    rng = np.random.default_rng(11)
+    n = k_lanes.LANES
+    for _ in range(300):
+        window = rng.uniform(-50.0, 600.0, (3, 2))
+        inv_w = 1.0 / rng.uniform(0.1, 100.0, 3)
+        uv = rng.uniform(-2.0, 3.0, (1, 3, 2))
+        centres = rng.integers(-60, 620, (n, 2)) + 0.5
+        tri_f = np.zeros((1, k_setup._NF))
+        for k in range(3):
+            tri_f[0, k_setup._F_X + k], tri_f[0, k_setup._F_Y + k] = window[k]
+            tri_f[0, k_setup._F_W + k] = inv_w[k]
+        lf = np.zeros((k_lanes._NLF, 2 * n))
+        lf[k_lanes._LF_CX, :n], lf[k_lanes._LF_CY, :n] = centres[:, 0], centres[:, 1]
+        k_interpolate._lane_weights(n, 0, tri_f, lf, uv, True)
+        weights = interpolate.perspective_weights(
+            interpolate.edge_functions(np.broadcast_to(window, (n, 3, 2)), centres), np.broadcast_to(inv_w, (n, 3)))
+        st = interpolate.interpolate(weights, np.broadcast_to(uv[0], (n, 3, 2)))
+        assert np.array_equal(lf[k_lanes._LF_W:k_lanes._LF_W + 3, :n].T, weights)
+        assert np.array_equal(lf[k_lanes._LF_S, :n], st[:, 0]) and np.array_equal(lf[k_lanes._LF_T, :n], st[:, 1])
+
+
 def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
     """`_lerp_lanes` on spread RGBA8 words = `_lerp8` per channel, for every weight 0..256."""
     rng = np.random.default_rng(7)

@@ -16,7 +16,7 @@ the stages' `draw_triangles`, on the same float64 buffers;
   einsum of `softras.pipeline.render.corner_values` (`_corners`);
 - coverage: `softras.pipeline.rasterize._raster_triangle` itself, on the
   triangle's pixel box cut to a band of rows;
-- per fragment: `softras.pipeline.interpolate.barycentric`,
+- per fragment: `softras.pipeline.interpolate.edge_functions`,
   `perspective_weights` (`softras.kernels.interpolate._weights_at`),
   `interpolate` (`_mix`), `depth_at_samples` (`softras.kernels.setup._depth_slopes`), for Phong
   `softras.pipeline.render.phong_attributes` and

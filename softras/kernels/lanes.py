@@ -11,7 +11,7 @@ untextured triangle's covered pixels (shaded from LANES of them on,
 `_flat_block`) or a textured triangle's covered 2x2 quads of one 8x8 block (4
 lanes per quad, up to 64, shaded per block in `_textured_tile`); then each step runs as one loop
 over the lanes.  The steps without branches or table look-ups (the
-perspective weights with their six divisions, depth, texel addresses, the
+perspective weights with their three divisions, depth, texel addresses, the
 8.8 filter, the colour bytes) are loops that LLVM compiles to AVX2 (4 or 8
 lanes per instruction); the depth test, the quad's level of detail, the
 texel fetches and the framebuffer writes stay scalar.  Same operations in

@@ -8,12 +8,29 @@ Screen-space barycentrics ``lam`` weight the three vertices linearly in window
 space; depth z_w is interpolated with them (docs/design.md section 4: depth is linear in
 screen space).  A vertex attribute is linear in clip space, not in window
 space, so it is interpolated with the perspective-corrected weights
-``b_i = (lam_i / w_i) / sum_j (lam_j / w_j)``.
+``b_i = (lam_i / w_i) / sum_j (lam_j / w_j)``, where the edge functions
+(twice the sub-triangles' areas) may stand for ``lam``: the area cancels.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+
+def edge_functions(vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The three edge functions of each triangle at a window point.
+
+    vertices : (F, 3, 2) float64 window x, y of each fragment's triangle.
+    points : (F, 2) float64 window x, y where to evaluate.
+    Returns e : (F, 3) float64; e_i is twice the signed area of the
+    sub-triangle opposite vertex i (the edge from vertex i+1 to i+2 and the
+    point), so e / e.sum() are the screen-space barycentrics.
+    """
+    x, y = vertices[..., 0], vertices[..., 1]
+    px, py = points[:, 0:1], points[:, 1:2]
+    nxt, prv = [1, 2, 0], [2, 0, 1]
+    x1, y1, x2, y2 = x[:, nxt], y[:, nxt], x[:, prv], y[:, prv]
+    return (x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)
 
 
 def barycentric(vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -24,19 +41,20 @@ def barycentric(vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
     Returns lam : (F, 3) float64 with lam.sum(axis=1) == 1 (up to rounding);
     lam_i is the area of the sub-triangle opposite vertex i over the area.
     """
-    x, y = vertices[..., 0], vertices[..., 1]
-    px, py = points[:, 0:1], points[:, 1:2]
-    nxt, prv = [1, 2, 0], [2, 0, 1]
-    # Edge function of the edge opposite vertex i (from vertex i+1 to i+2).
-    x1, y1, x2, y2 = x[:, nxt], y[:, nxt], x[:, prv], y[:, prv]
-    e = (x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)
+    e = edge_functions(vertices, points)
     return e / e.sum(axis=1, keepdims=True)
 
 
 def perspective_weights(lam: np.ndarray, inv_w: np.ndarray) -> np.ndarray:
     """Perspective-correct weights from screen-space barycentrics.
 
-    lam : (F, 3) screen-space barycentrics; inv_w : (F, 3) 1/w_clip per vertex.
+    lam : (F, 3) screen-space barycentrics, or any multiple of them per
+    fragment: the weights are ratios, ``(lam_i / w_i) / sum_j (lam_j / w_j)``
+    (GL 4.5 core, section 14.6.1, equation 14.9), so a common factor cancels,
+    and the renderer passes the edge functions (`edge_functions`) without
+    dividing them by the triangle's area (three float64 divisions a fragment
+    fewer, and one rounding).
+    inv_w : (F, 3) 1/w_clip per vertex.
     Returns (F, 3) weights that sum to 1 and interpolate clip-space-linear
     attributes exactly.
     """
@@ -80,8 +98,7 @@ def perspective_at(vertices: np.ndarray, inv_w: np.ndarray, values: np.ndarray,
     (F, 3, K) per-vertex attributes; points : (F, 2).  Returns (F, K); the
     attribute planes are simply extended outside the triangle.
     """
-    lam = barycentric(vertices[..., :2], points)
-    return interpolate(perspective_weights(lam, inv_w), values)
+    return interpolate(perspective_weights(edge_functions(vertices[..., :2], points), inv_w), values)
 
 
 def quad_derivatives(vertices: np.ndarray, inv_w: np.ndarray, x: np.ndarray, y: np.ndarray,

@@ -349,8 +349,9 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
         lit = fragment.blinn_phong(base[:, :3], world, unit_normals, eye, scene.lights, material)
         base = np.concatenate([lit, base[:, 3:]], axis=1)
     centres = np.stack([frags.x + 0.5, frags.y + 0.5], axis=1)
-    lam = interpolate.barycentric(tris.window[t, :, :2], centres)
-    persp = interpolate.perspective_weights(lam, tris.inv_w[t])
+    areas = interpolate.edge_functions(tris.window[t, :, :2], centres)
+    lam = areas / areas.sum(axis=1, keepdims=True)
+    persp = interpolate.perspective_weights(areas, tris.inv_w[t])
     z_raw = interpolate.depth_at_samples(tris.window[t], frags.x, frags.y, positions)
     z = ops.quantize_depth(z_raw) if gl else z_raw
     terms = [None] * len(t)
