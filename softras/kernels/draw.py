@@ -521,9 +521,9 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                 pass
             elif vectorised:
                 if block_two:                         # (the level count a constant in each copy)
-                    _lanes_bilinear_fixed(n, 2, words, lf, li, lu, texels32, sampler)
+                    _lanes_bilinear_fixed(n, 2, words, False, lf, li, lu, texels32, sampler)
                 else:
-                    _lanes_bilinear_fixed(n, 1, words, lf, li, lu, texels32, sampler)
+                    _lanes_bilinear_fixed(n, 1, words, False, lf, li, lu, texels32, sampler)
             elif sampler.beyond:
                 for l in range(n):
                     if li[_LI_PASS, l]:
