@@ -149,8 +149,21 @@ def _write_word(color32, py, px, p, n_samples, blend, word):
     """`softras.pipeline.ops.apply_fragments`'s colour write: store (blend == 0:
     one 32-bit store per sample) or blend (`softras.pipeline.ops.blend_byte` per
     channel, as `softras.pipeline.ops.blend_unorm8`) the fragment's RGBA8 word (R in the
-    low byte) into the samples of pixel (px, py) set in mask p."""
+    low byte) into the samples of pixel (px, py) set in mask p.  A blend
+    into every sample of a pixel whose samples hold one word (inside a
+    triangle of every earlier layer: most pixels) is worked out once and
+    stored to each: `_blend_word` is a function of the two words alone."""
     alpha = (word >> 24) & 255
+    if blend != 0 and n_samples > 1 and p == (1 << n_samples) - 1:
+        stored = color32[py, px, 0]
+        same = True
+        for s in range(1, n_samples):
+            same &= color32[py, px, s] == stored
+        if same:
+            blended = np.uint32(_blend_word(blend, word, np.int64(stored), alpha))
+            for s in range(n_samples):
+                color32[py, px, s] = blended
+            return
     for s in range(n_samples):
         if not (p >> s) & 1:
             continue
