@@ -231,6 +231,13 @@ def _lerp8(w, a, b):
     return a + ((w * (b - a) + 128) >> 8)
 
 
+@numba.njit(cache=True, inline="always")
+def _bilerp8(fa, fb, t00, t10, t01, t11):
+    """`_bilerp_lanes` of one channel: bytes t00, t10 (row 0) and t01, t11
+    (row 1), weights fa across and fb down, by `_lerp8`."""
+    return _lerp8(fb, _lerp8(fa, t00, t10), _lerp8(fa, t01, t11))
+
+
 # ----------------------------------------------------------------------------- level of detail
 
 
@@ -429,8 +436,9 @@ def _lanes_bilinear_fixed(n, n_levels, words, red_only, lf, li, lu, texels32, sa
     addresses and 8.8 weights (`_linear_fixed`, vectorised), the 4 or 8 texel
     fetches (scalar), the lane lerps (vectorised).  Writes the texel as k/255
     floats into the _LF_TEX rows (with ``red_only`` its red channel alone,
-    all a bump map reads: a quarter of the divisions), or with ``words`` as
-    its RGBA8 word into the _LI_WORD row.  (k/255 divided, not looked up in
+    all a bump map reads, filtered as bytes: `_lerp8`, which is
+    `_lerp_lanes` per channel), or with ``words`` as its RGBA8 word into
+    the _LI_WORD row.  (k/255 divided, not looked up in
     `BYTE_VALUES`: a loop of gathers from numba's constant array took 10.8
     ns a lane against 2.6 for the four divisions.)"""
     wrap_s, wrap_t = sampler.wrap_s, sampler.wrap_t
@@ -450,6 +458,19 @@ def _lanes_bilinear_fixed(n, n_levels, words, red_only, lf, li, lu, texels32, sa
             li[_LI_ADDR + 4 * lv + 1, l] = row0 + i1
             li[_LI_ADDR + 4 * lv + 2, l] = row1 + i0
             li[_LI_ADDR + 4 * lv + 3, l] = row1 + i1
+    if red_only:            # one channel: plain integer lerps (`_lerp8`), 14.3 -> 9.6 ns a lane at two levels
+        for a in range(4 * n_levels):
+            for l in range(n):
+                lu[a, l] = texels32[li[_LI_ADDR + a, l]] & 255
+        for l in range(n):
+            fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
+            red = _bilerp8(fa0, fb0, np.int64(lu[0, l]), np.int64(lu[1, l]), np.int64(lu[2, l]), np.int64(lu[3, l]))
+            if n_levels == 2:
+                fa1, fb1 = li[_LI_FRAC8 + 2, l], li[_LI_FRAC8 + 3, l]
+                red = _lerp8(li[_LI_W8, l], red, _bilerp8(fa1, fb1, np.int64(lu[4, l]), np.int64(lu[5, l]),
+                                                          np.int64(lu[6, l]), np.int64(lu[7, l])))
+            lf[_LF_TEX, l] = np.float64(red) / 255.0
+        return
     for a in range(4 * n_levels):
         for l in range(n):
             lu[a, l] = _spread(texels32[li[_LI_ADDR + a, l]])
@@ -470,9 +491,6 @@ def _lanes_bilinear_fixed(n, n_levels, words, red_only, lf, li, lu, texels32, sa
     if words:
         for l in range(n):
             li[_LI_WORD, l] = _unspread(lu[0, l])
-    elif red_only:
-        for l in range(n):
-            lf[_LF_TEX, l] = np.float64(_lane(lu[0, l], 0)) / 255.0
     else:
         for l in range(n):
             for c in range(4):
