@@ -48,6 +48,17 @@ def assert_same(general, fast, what):
                               f"{np.argwhere(differ)[0].tolist()}")
 
 
+def fresh(kernel):
+    """A compile of a cached kernel helper from its source as it is now, not
+    cached.  numba keys a function's cache on its own file: a helper that
+    reads another module's constants (the lane rows of
+    `softras.kernels.lanes`) loads its old code after an edit of that module
+    alone (the drivers are keyed on every kernel source, so renders are not
+    affected).  Tests that call such a helper directly call a fresh one."""
+    options = {key: value for key, value in kernel.targetoptions.items() if key not in ("cache", "nopython")}
+    return numba.njit(**options)(kernel.py_func)
+
+
 @pytest.mark.parametrize("samples", [None, 4])
 @pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
 def test_every_scene_is_bit_identical_or_dispatched(path, samples):
@@ -362,6 +373,7 @@ def test_phong_colors_are_the_stages_to_the_bit():
     n = k_lanes.LANES
     lights = [Light("point", rng.uniform(-3, 3, 3), None, np.array([1.0, 0.9, 0.8])),
               Light("directional", None, rng.uniform(-1, 1, 3), np.array([0.4, 0.5, 0.6]))]
+    phong_colors = fresh(k_light._phong_colors)
     for trial, shininess in enumerate([2.0, 0.5, 0.0, 1.0, 17.3, 64.0]):
         material = SimpleNamespace(ambient=0.15, diffuse=0.9, specular=0.7, shininess=shininess)
         base = rng.uniform(-0.2, 1.3, (3, 4))
@@ -377,7 +389,7 @@ def test_phong_colors_are_the_stages_to_the_bit():
         lf = np.zeros((k_lanes._NLF, 2 * n))
         lf[k_lanes._LF_W:k_lanes._LF_W + 3, :n] = persp.T
         table, lighting = k_light.light_table(lights, eye, material)
-        k_light._phong_colors(n, 0, base[None], np.concatenate([world, normals], axis=1)[None], lf, table,
+        phong_colors(n, 0, base[None], np.concatenate([world, normals], axis=1)[None], lf, table,
                               tuple(lighting), False)
         got = lf[k_lanes._LF_LIT:k_lanes._LF_LIT + 4, :n].T
         assert np.array_equal(got[:, :3].view(np.int64), expected.view(np.int64)), f"shininess {shininess}"
@@ -605,8 +617,9 @@ def test_flat_lane_words_take_the_colour_as_it_is():
     lf[_LF_W:_LF_W + 3] = np.array([0.3, 0.3, 0.4])[:, None] * (1 + 3e-16)
     li = np.zeros((_LI_WORD + 1, n), np.int64)
     expected = shade_unlit(colors[:, 0], np.ones(4))
+    lane_words = fresh(k_interpolate._lane_words)
     for t in range(n):
-        k_interpolate._lane_words(1, t, colors, lf, li, False, True)
+        lane_words(1, t, colors, lf, li, False, True)
         word = int(li[_LI_WORD, 0])
         assert [(word >> (8 * c)) & 255 for c in range(4)] == [unorm8(v) for v in expected[t]], t
 
@@ -743,9 +756,10 @@ def test_lane_depths_round_like_the_float_depth():
     li = np.zeros((k_lanes._LI_Z + 1, 8), np.int64)
     li[k_lanes._LI_PX, :n] = [0, 1, 2, 3, 4, 5]
     positions = np.array([[0.5, 0.5]])
+    lane_depths = fresh(k_interpolate._lane_depths)
     for z0, dzdx in ((0.25, 0.1), (0.999, 0.001), (-0.3, 0.2), (np.nan, 0.0), (0.5, 1e-9)):
         tri_f[0, k_setup._F_X], tri_f[0, k_setup._F_Z], tri_f[0, k_setup._F_DZDX] = 0.0, z0, dzdx
-        k_interpolate._lane_depths(n, 0, tri_f, positions, li, 1)
+        lane_depths(n, 0, tri_f, positions, li, 1)
         for l in range(n):
             z = z0 + dzdx * (l + 0.5)
             z = np.rint(min(max(z, 0.0), 1.0) * k_ops.DEPTH_SCALE) if z == z else np.nan
@@ -763,6 +777,7 @@ def test_lane_weights_are_the_stages_to_the_bit():
     from softras.pipeline import interpolate
     rng = np.random.default_rng(11)
     n = k_lanes.LANES
+    lane_weights = fresh(k_interpolate._lane_weights)
     for _ in range(300):
         window = rng.uniform(-50.0, 600.0, (3, 2))
         inv_w = 1.0 / rng.uniform(0.1, 100.0, 3)
@@ -774,7 +789,7 @@ def test_lane_weights_are_the_stages_to_the_bit():
             tri_f[0, k_setup._F_W + k] = inv_w[k]
         lf = np.zeros((k_lanes._NLF, 2 * n))
         lf[k_lanes._LF_CX, :n], lf[k_lanes._LF_CY, :n] = centres[:, 0], centres[:, 1]
-        k_interpolate._lane_weights(n, 0, tri_f, lf, uv, True)
+        lane_weights(n, 0, tri_f, lf, uv, True)
         weights = interpolate.perspective_weights(
             interpolate.edge_functions(np.broadcast_to(window, (n, 3, 2)), centres), np.broadcast_to(inv_w, (n, 3)))
         st = interpolate.interpolate(weights, np.broadcast_to(uv[0], (n, 3, 2)))
