@@ -39,10 +39,11 @@ LANES = 64                                   # 16 quads of an 8x8 block
 # texel word offset / width / height, mip weight (0..256), levels, image
 # filter, two levels or one, the 8 texel addresses, the 4 filter weights,
 # the fragment's RGBA8 word, the stored word a blending draw blends it
-# over (`softras.kernels.ops._write_lanes`), then the depth at each sample
+# over and the pixel's index in the picture's row-major order, py * width
+# + px (`softras.kernels.ops._write_lanes`), then the depth at each sample
 # as its 24-bit integer (`softras.kernels.interpolate._lane_depths`).
 (_LI_PX, _LI_PY, _LI_COV, _LI_PASS, _LI_BASE, _LI_LW, _LI_LH, _LI_W8, _LI_LEVEL, _LI_IMGF, _LI_TWO,
- _LI_ADDR, _LI_FRAC8, _LI_WORD, _LI_DST, _LI_Z) = 0, 1, 2, 3, 4, 6, 8, 10, 11, 13, 14, 15, 23, 27, 28, 29
+ _LI_ADDR, _LI_FRAC8, _LI_WORD, _LI_DST, _LI_PIX, _LI_Z) = 0, 1, 2, 3, 4, 6, 8, 10, 11, 13, 14, 15, 23, 27, 28, 29, 30
 
 # A thread's lane buffers (allocated once per thread by the tile driver,
 # `softras.kernels.draw._make_draw_tiles`): the float64 rows lf (_NLF,
