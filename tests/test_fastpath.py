@@ -390,7 +390,7 @@ def test_phong_colors_are_the_stages_to_the_bit():
         lf[k_lanes._LF_W:k_lanes._LF_W + 3, :n] = persp.T
         table, lighting = k_light.light_table(lights, eye, material)
         phong_colors(n, 0, base[None], np.concatenate([world, normals], axis=1)[None], lf, table,
-                              tuple(lighting), False)
+                     tuple(lighting), False)
         got = lf[k_lanes._LF_LIT:k_lanes._LF_LIT + 4, :n].T
         assert np.array_equal(got[:, :3].view(np.int64), expected.view(np.int64)), f"shininess {shininess}"
         assert np.array_equal(got[:, 3], colors[:, 3])
