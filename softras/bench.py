@@ -497,6 +497,7 @@ def run(runs: int = 3, full: bool = False, max_triangles: int = 1_000_000, max_s
     unless set, `softras.kernels.prepare`), and the warm-up render of each
     timing absorbs the compilation."""
     os.environ.setdefault("SOFTRAS_COMPILE", "wait")
+    wall_start, cpu_start = time.perf_counter(), time.process_time()
     rows: list[Row] = []
     echo(HEADER)
     series: dict[str, list[tuple[int, float]]] = {"triangles": [], "pixels": []}
@@ -525,7 +526,16 @@ def run(runs: int = 3, full: bool = False, max_triangles: int = 1_000_000, max_s
         echo(f"loader: {figure['triangles']} triangles as explicit arrays ({figure['megabytes']:.1f} MB): "
              f"load_scene {figure['load_seconds'] * 1e3:.1f} ms, json.load {figure['json_seconds'] * 1e3:.1f} ms, "
              f"ratio {figure['ratio']:.2f}")
-    report = {"rows": [asdict(r) for r in rows], "fits": fits, "loader": loader, "runs": runs, "full": full,
+    # The run's CPU time beside its wall time: on a shared machine the two
+    # threads of softras (and llvmpipe's) at times get one core's worth of
+    # time between them, and every figure of that run is then about doubled
+    # (docs/speed.md, twenty-fifth round); runs compare where these agree.
+    run_time = {"wall_seconds": time.perf_counter() - wall_start, "cpu_seconds": time.process_time() - cpu_start,
+                "cores": os.cpu_count()}
+    echo(f"this run: {run_time['wall_seconds']:.1f} s of wall time, {run_time['cpu_seconds']:.1f} s of CPU in "
+         f"this process (all its threads) on {run_time['cores']} cores")
+    report = {"rows": [asdict(r) for r in rows], "fits": fits, "loader": loader, "run_time": run_time,
+              "runs": runs, "full": full,
               "truth": "supersampled_reference, exact, level-0 bilinear, up to 16x16 samples per pixel "
                        f"within {TRUTH_MAX_SIDE} pixels a side", "levels": [asdict(level) for level in LEVELS],
               "memory": "peak_mib: tracemalloc peak of one render (numpy and Python allocations, not "

@@ -137,9 +137,15 @@ def test_run_writes_json_and_plot(tmp_path, monkeypatch):
     assert saved["fits"] == report["fits"] and "triangles_exponent" in saved["fits"]
     assert [r["scene"] for r in saved["rows"]] == ["grid", "t1", "t2"]
     assert (tmp_path / "b.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert lines[0] == bench.HEADER and lines[-2].startswith("cost fits")
-    assert lines[-1].startswith("loader: 32 triangles as explicit arrays") and "ratio" in lines[-1]
+    assert lines[0] == bench.HEADER and lines[-3].startswith("cost fits")
+    assert lines[-2].startswith("loader: 32 triangles as explicit arrays") and "ratio" in lines[-2]
     assert saved["loader"][0]["triangles"] == 32 and saved["loader"][0]["ratio"] > 0
+    # The run's wall and CPU time (all its threads), as printed and saved.
+    run_time = saved["run_time"]
+    assert 0 < run_time["wall_seconds"] and 0 < run_time["cpu_seconds"] and run_time["cores"] >= 1
+    assert lines[-1] == (f"this run: {run_time['wall_seconds']:.1f} s of wall time, "
+                         f"{run_time['cpu_seconds']:.1f} s of CPU in this process (all its threads) on "
+                         f"{run_time['cores']} cores")
 
 
 @pytest.mark.gl
