@@ -768,7 +768,7 @@ def test_lane_depths_round_like_the_float_depth():
 
 def test_lane_weights_are_the_stages_to_the_bit():
     """`_lane_weights` (`_weights_at`): the perspective weights are
-    `interpolate.perspective_weights` of `interpolate.edge_functions` and the
+    `interpolate.perspective_weights_at` (of the edge functions) and the
     (s, t) `interpolate.interpolate` of the corner uvs under them, bit for
     bit, on random triangles (1/w over three decades) at pixel centres
     inside and outside.  (The pictures alone did not tell the weights of
@@ -790,8 +790,8 @@ def test_lane_weights_are_the_stages_to_the_bit():
         lf = np.zeros((k_lanes._NLF, 2 * n))
         lf[k_lanes._LF_CX, :n], lf[k_lanes._LF_CY, :n] = centres[:, 0], centres[:, 1]
         lane_weights(n, 0, tri_f, lf, uv, True)
-        weights = interpolate.perspective_weights(
-            interpolate.edge_functions(np.broadcast_to(window, (n, 3, 2)), centres), np.broadcast_to(inv_w, (n, 3)))
+        weights = interpolate.perspective_weights_at(np.broadcast_to(window, (n, 3, 2)), np.broadcast_to(inv_w, (n, 3)),
+                                                     centres)
         st = interpolate.interpolate(weights, np.broadcast_to(uv[0], (n, 3, 2)))
         assert np.array_equal(lf[k_lanes._LF_W:k_lanes._LF_W + 3, :n].T, weights)
         assert np.array_equal(lf[k_lanes._LF_S, :n], st[:, 0]) and np.array_equal(lf[k_lanes._LF_T, :n], st[:, 1])

@@ -84,8 +84,8 @@ def variants(scene, samples: int) -> set:
     from softras.kernels.draw import driver_samples, textured
     from softras.pipeline.sampling import sample_passes
 
-    needed = {(driver_samples(stop - start, textured(draw.material)), textured(draw.material))
-              for start, stop in sample_passes(samples) for draw in scene.draws if draw.mesh.primitive == "triangles"}
+    kinds = {textured(draw.material) for draw in scene.draws if draw.mesh.primitive == "triangles"}
+    needed = {(driver_samples(stop - start, kind), kind) for start, stop in sample_passes(samples) for kind in kinds}
     if any(draw.mesh.primitive == "lines" for draw in scene.draws):
         needed.add(LINES)
     return needed

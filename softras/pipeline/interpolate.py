@@ -62,6 +62,15 @@ def perspective_weights(lam: np.ndarray, inv_w: np.ndarray) -> np.ndarray:
     return q / q.sum(axis=1, keepdims=True)
 
 
+def perspective_weights_at(vertices: np.ndarray, inv_w: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """`perspective_weights` of the `edge_functions` at window points.
+
+    vertices : (F, 3, >=2) window coordinates; inv_w : (F, 3); points : (F, 2).
+    Returns (F, 3) perspective-correct weights.
+    """
+    return perspective_weights(edge_functions(vertices[..., :2], points), inv_w)
+
+
 def interpolate(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Weighted sum of per-vertex values: (F, 3) x (F, 3, K) -> (F, K)."""
     return np.einsum("fi,fik->fk", weights, values)
@@ -98,7 +107,7 @@ def perspective_at(vertices: np.ndarray, inv_w: np.ndarray, values: np.ndarray,
     (F, 3, K) per-vertex attributes; points : (F, 2).  Returns (F, K); the
     attribute planes are simply extended outside the triangle.
     """
-    return interpolate(perspective_weights(edge_functions(vertices[..., :2], points), inv_w), values)
+    return interpolate(perspective_weights_at(vertices, inv_w, points), values)
 
 
 def quad_derivatives(vertices: np.ndarray, inv_w: np.ndarray, x: np.ndarray, y: np.ndarray,

@@ -482,8 +482,7 @@ def draw_triangles(scene: Scene, draw, inputs: Pass, color: np.ndarray, depth: n
         for chunk in fragment_chunks(frags):
             t = chunk.tri
             centres = np.stack([chunk.x + 0.5, chunk.y + 0.5], axis=1)
-            persp = interpolate.perspective_weights(interpolate.edge_functions(tris.window[t, :, :2], centres),
-                                                    tris.inv_w[t])
+            persp = interpolate.perspective_weights_at(tris.window[t], tris.inv_w[t], centres)
             z = interpolate.depth_at_samples(tris.window[t], chunk.x, chunk.y, positions)
             if gl:
                 z = ops.quantize_depth(z)

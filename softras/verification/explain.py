@@ -349,9 +349,8 @@ def _triangle_draws(scene, draw, clip_pos, vertex_colors, wx, wy, precision, pol
         lit = fragment.blinn_phong(base[:, :3], world, unit_normals, eye, scene.lights, material)
         base = np.concatenate([lit, base[:, 3:]], axis=1)
     centres = np.stack([frags.x + 0.5, frags.y + 0.5], axis=1)
-    areas = interpolate.edge_functions(tris.window[t, :, :2], centres)
-    lam = areas / areas.sum(axis=1, keepdims=True)
-    persp = interpolate.perspective_weights(areas, tris.inv_w[t])
+    lam = interpolate.barycentric(tris.window[t, :, :2], centres)
+    persp = interpolate.perspective_weights_at(tris.window[t], tris.inv_w[t], centres)
     z_raw = interpolate.depth_at_samples(tris.window[t], frags.x, frags.y, positions)
     z = ops.quantize_depth(z_raw) if gl else z_raw
     terms = [None] * len(t)
