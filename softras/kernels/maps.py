@@ -72,8 +72,10 @@ def _make_map_normals(sources: str):
                     else:
                         t32 = np.float32(t32 + np.float32(sign * step_t))
                     lf[_LF_S, l], lf[_LF_T, l] = np.float64(s32), np.float64(t32)
-            if vectorised:                                  # (one copy: the level count read at run time)
-                _lanes_bilinear_fixed(n, 2 if block_two else 1, False, bump, lf, li, lu, texels32, sampler)
+            if vectorised and block_two:                    # (the level count a constant in each copy)
+                _lanes_bilinear_fixed(n, 2, False, bump, lf, li, lu, texels32, sampler)
+            elif vectorised:
+                _lanes_bilinear_fixed(n, 1, False, bump, lf, li, lu, texels32, sampler)
             else:
                 for l in range(n):
                     if li[_LI_COV, l]:
