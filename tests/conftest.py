@@ -72,6 +72,8 @@ def pytest_sessionstart(session):
         mine = shares[index % 2] if count == 2 else variants[index % count::count]
         for variant in mine:
             prepare.prepare(variant)
+        if index == count - 1:          # (two workers: the share that is ready ~35 s sooner)
+            _compile_stage_loops()
     if not session.config.getoption("--update-golden", default=False):
         return
     from softras.cli import main
@@ -80,6 +82,30 @@ def pytest_sessionstart(session):
         status = main(["golden", "--update"])
     if status != 0:
         pytest.exit(f"softras golden --update failed (exit status {status})", returncode=status)
+
+
+def _compile_stage_loops() -> None:
+    """Compile the readable stages' own numba loops into numba's cache (the
+    line stage, the per-fragment operations, the resolves, the texture
+    bounds, exact precision's stages): every scene of scenes/ on the stages,
+    and the spec bounds of five scenes (tie rules, lines moved, texture
+    bounds).  Else the first tests to need each loop compile it, on both
+    workers at once and in the conformance runner's processes: a fresh
+    clone's suite spent ~70 s more in such tests than a warm one
+    (docs/speed.md, "Twenty-sixth round").  About 30 s on one core, once;
+    a second each after."""
+    import softras
+    from softras.renderer import render_scene
+    from softras.verification import verifier
+
+    for path in sorted(SCENES.glob("*.json")):
+        render_scene(softras.load_scene(path), precision="gl", fast_path=False)
+    for name in ("line_star", "texture_floor_trilinear", "texture_anisotropic_floor", "bump_mapped_plane",
+                 "msaa_fan"):
+        verifier.spec_bounds(softras.load_scene(SCENES / f"{name}.json"))
+    fan = softras.load_scene(SCENES / "msaa_fan.json")
+    render_scene(fan, samples=4, resolve_filter="tent", fast_path=False)
+    render_scene(fan, samples=4, precision="exact", fast_path=False)
 
 
 @pytest.fixture(autouse=True)
