@@ -49,16 +49,18 @@ def started(monkeypatch):
 
 @pytest.mark.parametrize("textured", [False, True])
 def test_the_preparation_scene_reaches_every_kernel(textured):
-    """Every draw crosses the near plane (the clipper's generated triangles)
-    with at least PARALLEL_SETUP triangles (the parallel set-up); every
+    """Every draw but the last crosses the near plane (the clipper's
+    generated triangles) with at least PARALLEL_SETUP triangles (the
+    parallel set-up), the last has fewer (the set-up in one call); every
     shading model; textured: a filter of each kind, lanes and scalar; and
     with lines, `line_preparation_scene`'s draw."""
     scene = softras.load_scene(prepare.preparation_scene(4, textured, lines=False))
     assert fastpath.unsupported(scene, precision="gl", clipping=None) is None
     assert {d.material.shading for d in scene.draws} == {"unlit", "flat", "gouraud", "phong"}
     with_lines = softras.load_scene(prepare.preparation_scene(4, textured))
-    assert [d.mesh.primitive for d in with_lines.draws] == ["triangles"] * 4 + ["lines"]
-    for draw in scene.draws:
+    assert [d.mesh.primitive for d in with_lines.draws] == ["triangles"] * 5 + ["lines"]
+    assert 0 < len(scene.draws[-1].mesh.indices) < k_setup.PARALLEL_SETUP
+    for draw in scene.draws[:-1]:
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
         source, slot, _, _ = clip_stage.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"),
                                                           draw.mesh.indices)
@@ -220,6 +222,58 @@ print(json.dumps([before, compiled()]))
     for kernel in ("_DRAW", "_setup", "_corners", "_resolve_box"):           # (called from Python)
         assert before[f"softras.kernels.exact.{kernel}"] >= 1, f"the preparation did not compile exact.{kernel}"
     assert before["softras.kernels.exact_lines._DRAW_LINES"] >= 1, "the preparation did not compile exact_lines"
+    assert {name: n for name, n in after.items() if n != before[name]} == {}
+
+
+def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_path):
+    """In a new process, preparing every gl variant (the tile drivers and
+    LINES) compiles (or loads) the kernels that gl precision calls and the
+    clipper's, and rendering the scene files (JSON and glTF) and random
+    scenes at 1, 4 and 8 samples afterwards adds no compiled specialisation
+    to any of their dispatchers.  numba types an array with whether it is
+    read-only, and a scene's arrays are read-only or not by where they come
+    from (a mesh's vertex colours, a procedural mesh): the kernels' inputs
+    go through `softras.kernels.scratch.read_only`, without which the line
+    kernel, the clipper and the set-up compiled again at a user's first
+    render of such a scene; and a draw of a few triangles is set up by
+    `_setup_range` alone, which the preparation scenes reach too."""
+    program = f"""
+import json, sys
+from pathlib import Path
+import numba
+sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
+import softras
+from softras.kernels import draw, light, lines, maps, prepare, setup, texture, texture_beyond
+from softras.pipeline import clip
+from softras.renderer import render_scene
+from test_fastpath import lit_scene, random_line_scene, random_scene
+
+prepare.cache_dir = lambda: Path({str(tmp_path)!r})
+modules = (draw, light, lines, maps, setup, texture, texture_beyond, clip)
+def compiled():
+    found = {{f"{{m.__name__}}.{{n}}": len(d.signatures) for m in modules for n, d in vars(m).items()
+              if isinstance(d, numba.core.registry.CPUDispatcher)}}
+    return found | {{f"draw_tiles {{key}}": len(d.signatures) for key, d in draw._DRAW_TILES.items()}}
+for variant in [*draw._DRAW_TILES, prepare.LINES]:
+    prepare.prepare(variant)
+before = compiled()
+folder = Path({str(SCENES_DIR)!r})
+scenes = [softras.load_scene(p) for p in sorted([*folder.glob("*.json"), *folder.glob("*.glb")])]
+scenes += [softras.load_scene(f(seed)) for seed in range(4) for f in (random_scene, random_line_scene)]
+scenes += [softras.load_scene(lit_scene(seed, shading)) for seed in range(2) for shading in ("flat", "gouraud", "phong")]
+for scene in scenes:
+    for samples, pattern in ((None, None), (4, None), (8, "halton")):
+        render_scene(scene, precision="gl", samples=samples, pattern=pattern)
+print(json.dumps([before, compiled()]))
+"""
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, prepare.ENV: prepare.MODE_WAIT})
+    assert done.returncode == 0, done.stderr[-3000:]
+    before, after = json.loads(done.stdout.splitlines()[-1])
+    for key in fastpath._DRAW_TILES:
+        assert before[f"draw_tiles {key}"] == 1, f"the preparation did not compile the driver {key}"
+    assert before["softras.kernels.lines._DRAW_LINES"] == 1, "the preparation did not compile the line kernel"
+    assert before["softras.pipeline.clip.triangle_list_gl"] == 1
     assert {name: n for name, n in after.items() if n != before[name]} == {}
 
 

@@ -88,7 +88,7 @@ from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_c
 from softras.kernels.ops import Framebuffer, _depth_test_lane, _uses_depth, _write_lanes, clear
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_whole_block, _tile_box)
-from softras.kernels.scratch import _Scratch
+from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.maps import _map_normals
@@ -212,7 +212,8 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
     width, height = scene.width, scene.height
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
     clip_pos = vertex.to_clip(mesh.positions, mvp, "gl")
-    clipped = Clipped(mesh.indices, *clip_stage.triangle_list_gl(clip_pos, mesh.indices))
+    indices = read_only(mesh.indices, np.int64)             # (one compiled type: `read_only`)
+    clipped = Clipped(indices, *clip_stage.triangle_list_gl(clip_pos, indices))
     n = len(clipped.source)
     if n == 0:
         return

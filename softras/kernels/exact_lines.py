@@ -36,7 +36,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from softras.kernels.scratch import _Scratch
+from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
@@ -63,29 +63,20 @@ def draw_lines(scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.nd
     clip_pos = stages.draw_clip_positions(scene, draw, inputs.precision)
     c, finite, planes = lines_stage.clip_inputs(clip_pos, inputs.precision, inputs.policy, scene.width,
                                                 scene.height)
-    positions = _read_only(inputs.positions, np.float64)
+    positions = read_only(inputs.positions, np.float64)
     rectangular = len(positions) > 1
-    indices = _read_only(np.asarray(mesh.indices, np.int64).reshape(-1, 2), np.int64)
+    indices = read_only(np.asarray(mesh.indices, np.int64).reshape(-1, 2), np.int64)
     n = len(indices)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
-    _DRAW_LINES(_read_only(c, np.float64), _read_only(finite, np.bool_), indices, _read_only(planes, np.float64),
-                _read_only(stages.vertex_colors(mesh), np.float64), _read_only(draw.material.color, np.float64),
-                _read_only(lines_stage.sample_offsets(positions, rectangular, False), np.float64), positions,
+    _DRAW_LINES(read_only(c, np.float64), read_only(finite, np.bool_), indices, read_only(planes, np.float64),
+                read_only(stages.vertex_colors(mesh), np.float64), read_only(draw.material.color, np.float64),
+                read_only(lines_stage.sample_offsets(positions, rectangular, False), np.float64), positions,
                 rectangular, color, depth, depth_func, bool(draw.depth_write) and depth_func != 0,
                 ops.BLEND_MODES[draw.blend],
                 _scratch.take("drawn", (n,), np.bool_), _scratch.take("qx", (n, 4), np.float64),
                 _scratch.take("qy", (n, 4), np.float64), _scratch.take("window", (n, 2, 3), np.float64),
                 _scratch.take("inv_w", (n, 2), np.float64), _scratch.take("ends", (n, 2, 4), np.float64),
                 BAND_ROWS, numba.get_num_threads())
-
-
-def _read_only(a, dtype) -> np.ndarray:
-    """A C-contiguous read-only view of ``a`` as ``dtype``: the kernel's
-    inputs typed alike whether the scene's arrays are read-only or not (one
-    compiled specialisation, the one `softras.kernels.prepare` compiles)."""
-    view = np.ascontiguousarray(a, dtype).view()
-    view.flags.writeable = False
-    return view
 
 
 _scratch = _Scratch()

@@ -37,7 +37,7 @@ import numpy as np
 
 from softras.kernels.interpolate import RGBA, _color_word
 from softras.kernels.ops import _depth_k, _depth_pass_k, _write_word
-from softras.kernels.scratch import _Scratch
+from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import clip as clip_stage
@@ -79,8 +79,8 @@ def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
                       _scratch.take("qy", (n, 4), np.float64), _scratch.take("region", (n, 4), np.int64),
                       _scratch.take("window", (n, 2, 3), np.float64), _scratch.take("inv_w", (n, 2), np.float64),
                       _scratch.take("ends", (n, 2, 4), np.float64))
-    _DRAW_LINES(c, finite, np.ascontiguousarray(mesh.indices, np.int64), planes,
-                np.ascontiguousarray(vertex_colors(mesh), np.float64), np.asarray(draw.material.color, np.float64),
+    _DRAW_LINES(c, finite, read_only(mesh.indices, np.int64), planes,
+                read_only(vertex_colors(mesh), np.float64), read_only(draw.material.color, np.float64),
                 offsets, np.ascontiguousarray(positions, np.float64), rectangular,
                 lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.depth, depth_func,
                 bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend], *table,

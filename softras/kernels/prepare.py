@@ -195,8 +195,10 @@ def preparation_scene(samples: int, textured: bool, lines: bool = True) -> dict:
     parallel set-up, `softras.kernels.setup.PARALLEL_SETUP`), crossing the
     near plane (the clipper), drawn unlit, flat, Gouraud and
     Phong, textured with a mipmapped filter (the lane filter) and a nearest
-    one (the scalar filter) when ``textured``, blended and depth-tested; and
-    with ``lines`` the draw of `line_preparation_scene`."""
+    one (the scalar filter) when ``textured``, blended and depth-tested; a
+    draw of two triangles (set up in one call, `softras.kernels.setup._setup_range`,
+    which a scene under PARALLEL_SETUP triangles calls directly); and with
+    ``lines`` the draw of `line_preparation_scene`."""
     from softras.kernels.setup import PARALLEL_SETUP
 
     cols = 2 * int(np.ceil(np.sqrt(PARALLEL_SETUP / 2)))     # (about half of it is inside the frustum)
@@ -208,6 +210,9 @@ def preparation_scene(samples: int, textured: bool, lines: bool = True) -> dict:
         nodes.append({"name": shading, "rotate": [-80, 1, 0, 0], "translate": [0.3 * k - 0.45, -0.5, 0],
                       "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [4, 8]},
                       "material": material, "blend": "over" if k == 3 else "none"})
+    nodes.append({"name": "few", "translate": [0, 0, -1],        # (textured too: the same variant)
+                  "mesh": {"procedural": "grid", "cols": 1, "rows": 1, "size": [0.5, 0.5]},
+                  "material": {"texture": "nearest"} if textured else {}})
     if lines:
         nodes += line_preparation_scene()["nodes"]
     textures = {name: {"procedural": "checker", "size": [16, 16], "min_filter": name + "_mipmap_linear"

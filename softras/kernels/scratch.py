@@ -1,4 +1,6 @@
-"""Per-thread scratch arrays the compiled path reuses from one render to the next."""
+"""What the compiled path hands its kernels besides the scene: per-thread
+scratch arrays it reuses from one render to the next, and read-only views
+of its inputs (`read_only`)."""
 
 from __future__ import annotations
 
@@ -30,3 +32,20 @@ class _Scratch(threading.local):
             if buffer.nbytes <= self.MAX_BYTES:
                 self.buffers[name] = buffer
         return buffer[:size].reshape(shape)
+
+
+def read_only(a, dtype) -> np.ndarray:
+    """A C-contiguous read-only view of ``a`` as ``dtype`` (a copy only where
+    the layout or dtype differs).  numba compiles a kernel once per argument
+    type, and whether an array is read-only is part of its type: a loaded
+    scene's arrays are read-only (`softras.scene.model`), but a mesh's
+    default vertex colours (`softras.pipeline.render.vertex_colors`) and the
+    scenes the verifier derives (moved, without lines) hold fresh, writable
+    ones, so a kernel handed both compiled again at a user's first render
+    of such a scene, after its preparation (docs/speed.md, "Twenty-sixth
+    round").  Handed through this
+    view, every caller gives the one type that `softras.kernels.prepare`
+    compiles."""
+    view = np.ascontiguousarray(a, dtype).view()
+    view.flags.writeable = False
+    return view
