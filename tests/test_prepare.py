@@ -232,7 +232,8 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
     scenes at 1, 4 and 8 samples afterwards adds no compiled specialisation
     to any of their dispatchers.  numba types an array with whether it is
     read-only, and a scene's arrays are read-only or not by where they come
-    from (a mesh's vertex colours, a procedural mesh): the kernels' inputs
+    from (a mesh's default vertex colours, the verifier's derived scenes
+    are fresh arrays): the kernels' inputs
     go through `softras.kernels.scratch.read_only`, without which the line
     kernel, the clipper and the set-up compiled again at a user's first
     render of such a scene; and a draw of a few triangles is set up by

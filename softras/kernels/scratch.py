@@ -43,9 +43,8 @@ def read_only(a, dtype) -> np.ndarray:
     scenes the verifier derives (moved, without lines) hold fresh, writable
     ones, so a kernel handed both compiled again at a user's first render
     of such a scene, after its preparation (docs/speed.md, "Twenty-sixth
-    round").  Handed through this
-    view, every caller gives the one type that `softras.kernels.prepare`
-    compiles."""
+    round").  Handed through this view, every caller gives the one type
+    that `softras.kernels.prepare` compiles."""
     view = np.ascontiguousarray(a, dtype).view()
     view.flags.writeable = False
     return view
