@@ -228,16 +228,18 @@ print(json.dumps([before, compiled()]))
 def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_path):
     """In a new process, preparing every gl variant (the tile drivers and
     LINES) compiles (or loads) the kernels that gl precision calls and the
-    clipper's, and rendering the scene files (JSON and glTF) and random
+    stages' loops they call (the clipper, the transform, the line stage,
+    the resolves), and rendering the scene files (JSON and glTF) and random
     scenes at 1, 4 and 8 samples afterwards adds no compiled specialisation
     to any of their dispatchers.  numba types an array with whether it is
     read-only, and a scene's arrays are read-only or not by where they come
-    from (a mesh's default vertex colours, the verifier's derived scenes
-    are fresh arrays): the kernels' inputs
-    go through `softras.kernels.scratch.read_only`, without which the line
-    kernel, the clipper and the set-up compiled again at a user's first
-    render of such a scene; and a draw of a few triangles is set up by
-    `_setup_range` alone, which the preparation scenes reach too."""
+    from (a mesh's default vertex colours and the verifier's derived scenes
+    are fresh arrays): the kernels' inputs go through
+    `softras.kernels.scratch.read_only`, without which the line kernel, the
+    clipper and the set-up compiled again at a user's first render of such
+    a scene.  A draw of a few triangles is set up by `_setup_range` alone,
+    and an MSAA picture is resolved by `_resolve_bytes` (GL's patterns) or
+    `_resolve_exact` (any other): the preparation reaches them too."""
     program = f"""
 import json, sys
 from pathlib import Path
@@ -245,12 +247,13 @@ import numba
 sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
 import softras
 from softras.kernels import draw, light, lines, maps, prepare, setup, texture, texture_beyond
-from softras.pipeline import clip
+from softras.pipeline import clip, ops, rasterize, vertex
+from softras.pipeline import lines as line_stage
 from softras.renderer import render_scene
 from test_fastpath import lit_scene, random_line_scene, random_scene
 
 prepare.cache_dir = lambda: Path({str(tmp_path)!r})
-modules = (draw, light, lines, maps, setup, texture, texture_beyond, clip)
+modules = (draw, light, lines, maps, setup, texture, texture_beyond, clip, ops, rasterize, vertex, line_stage)
 def compiled():
     found = {{f"{{m.__name__}}.{{n}}": len(d.signatures) for m in modules for n, d in vars(m).items()
               if isinstance(d, numba.core.registry.CPUDispatcher)}}
@@ -275,6 +278,7 @@ print(json.dumps([before, compiled()]))
         assert before[f"draw_tiles {key}"] == 1, f"the preparation did not compile the driver {key}"
     assert before["softras.kernels.lines._DRAW_LINES"] == 1, "the preparation did not compile the line kernel"
     assert before["softras.pipeline.clip.triangle_list_gl"] == 1
+    assert before["softras.pipeline.ops._resolve_bytes"] == 1, "the preparation did not compile the MSAA resolve"
     assert {name: n for name, n in after.items() if n != before[name]} == {}
 
 

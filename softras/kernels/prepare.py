@@ -237,12 +237,14 @@ def prepare(variant) -> None:
     """Compile ``variant`` now unless it is ready: under its lock, render
     `preparation_scene` on the compiled path (a tile driver (driver
     samples, textured): in gl precision, without lines, at 2 samples for
-    the driver of any count; EXACT: textured, in exact precision) or LINES
-    `line_preparation_scene` (gl precision), then mark it ready."""
+    the driver of any count, and above one sample both box resolves of
+    its samples, `softras.pipeline.render.resolve_bytes`' compiled loops;
+    EXACT: textured, in exact precision) or LINES `line_preparation_scene`
+    (gl precision), then mark it ready."""
     if ready(variant):
         return
     from softras.kernels import draw
-    from softras.pipeline import sampling
+    from softras.pipeline import ops, sampling
     from softras.scene import load_scene
 
     with _locked(variant):
@@ -267,7 +269,10 @@ def prepare(variant) -> None:
                          sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)
             scene = load_scene(preparation_scene(samples or 1, textured, lines=False))    # (a scene has 1 or 4)
             assert draw.unsupported(scene, precision="gl", clipping=None) is None
-            draw.render_samples(scene, positions)
+            stored = draw.render_samples(scene, positions)
+            if len(positions) > 1:      # the box resolves: llvmpipe's (GL's patterns) and the exact mean's
+                ops.resolve_llvmpipe_bytes(stored)
+                ops.resolve_exact_bytes(stored)
         _mark(variant).touch()
 
 
