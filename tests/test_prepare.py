@@ -182,43 +182,67 @@ def test_a_textured_scene_at_4_samples_needs_the_driver_of_any_count():
     assert prepare.variants(untextured, 4) == {(4, False)}
 
 
-def test_the_exact_preparation_reaches_every_exact_kernel(tmp_path):
-    """In a new process, preparing `prepare.EXACT` compiles (or loads) every
-    kernel of softras.kernels that exact precision calls, and the clipper's:
-    rendering the conformance scenes and random lit, textured, blended
-    scenes at 1 and 4 samples afterwards adds no compiled specialisation to
-    any of their dispatchers.  (The draws exact precision leaves to the
-    stages compile the stages' own kernels, seconds, as the stages do.)"""
+def new_specialisations(tmp_path, kernels: list[str], stages: list[str], preparation: str,
+                        renders: list[dict]) -> tuple[dict, dict]:
+    """In a new process (the preparation's marks in tmp_path): run
+    ``preparation`` (Python, with `prepare` imported), count the compiled
+    specialisations of every numba dispatcher of the named modules of
+    softras.kernels and softras.pipeline (module globals, and the dicts of
+    them such as `draw._DRAW_TILES`), render every scene file (JSON and
+    glTF) and random lit, textured, blended and line scenes with each
+    option set of ``renders``, and count again.  Returns ({name: count}
+    before, after)."""
     program = f"""
-import json, sys
+import importlib, json, sys
 from pathlib import Path
 import numba
 sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
 import softras
-from softras.kernels import exact, exact_lines, interpolate, light, prepare, setup
-from softras.pipeline import clip
+from softras.kernels import prepare
 from softras.renderer import render_scene
 from test_fastpath import lit_scene, random_line_scene, random_scene
 
 prepare.cache_dir = lambda: Path({str(tmp_path)!r})
-modules = (exact, exact_lines, interpolate, light, setup, clip)
+modules = ([importlib.import_module("softras.kernels." + name) for name in {kernels!r}]
+           + [importlib.import_module("softras.pipeline." + name) for name in {stages!r}])
 def compiled():
-    return {{f"{{m.__name__}}.{{n}}": len(d.signatures) for m in modules for n, d in vars(m).items()
-             if isinstance(d, numba.core.registry.CPUDispatcher)}}
-prepare.prepare(prepare.EXACT)
+    found = {{}}
+    for m in modules:
+        for n, value in vars(m).items():
+            for key, d in (value.items() if isinstance(value, dict) else [(None, value)]):
+                if isinstance(d, numba.core.registry.CPUDispatcher):
+                    found[f"{{m.__name__}}.{{n}}" + ("" if key is None else f"[{{key}}]")] = len(d.signatures)
+    return found
+{preparation}
 before = compiled()
-scenes = [softras.load_scene(p) for p in sorted(Path({str(SCENES_DIR)!r}).glob("*.json"))]
+folder = Path({str(SCENES_DIR)!r})
+scenes = [softras.load_scene(p) for p in sorted([*folder.glob("*.json"), *folder.glob("*.glb")])]
 scenes += [softras.load_scene(f(seed)) for seed in range(4) for f in (random_scene, random_line_scene)]
-scenes += [softras.load_scene(lit_scene(seed, shading)) for seed in range(2) for shading in ("flat", "gouraud", "phong")]
+scenes += [softras.load_scene(lit_scene(seed, shading))
+           for seed in range(2) for shading in ("flat", "gouraud", "phong")]
 for scene in scenes:
-    for samples in (None, 4):
-        render_scene(scene, precision="exact", samples=samples)
+    for options in {renders!r}:
+        render_scene(scene, **options)
 print(json.dumps([before, compiled()]))
 """
     done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=600,
                           env={**os.environ, prepare.ENV: prepare.MODE_WAIT})
     assert done.returncode == 0, done.stderr[-3000:]
     before, after = json.loads(done.stdout.splitlines()[-1])
+    return before, after
+
+
+def test_the_exact_preparation_reaches_every_exact_kernel(tmp_path):
+    """In a new process, preparing `prepare.EXACT` compiles (or loads) every
+    kernel of softras.kernels that exact precision calls, and the clipper's:
+    rendering the scene files and random lit, textured, blended scenes at 1
+    and 4 samples afterwards adds no compiled specialisation to any of their
+    dispatchers (`new_specialisations`).  (The draws exact precision leaves
+    to the stages compile the stages' own kernels, seconds, as the stages
+    do.)"""
+    before, after = new_specialisations(tmp_path, ["exact", "exact_lines", "interpolate", "light", "setup"], ["clip"],
+                                        "prepare.prepare(prepare.EXACT)",
+                                        [{"precision": "exact", "samples": samples} for samples in (None, 4)])
     for kernel in ("_DRAW", "_setup", "_corners", "_resolve_box"):           # (called from Python)
         assert before[f"softras.kernels.exact.{kernel}"] >= 1, f"the preparation did not compile exact.{kernel}"
     assert before["softras.kernels.exact_lines._DRAW_LINES"] >= 1, "the preparation did not compile exact_lines"
@@ -229,53 +253,27 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
     """In a new process, preparing every gl variant (the tile drivers and
     LINES) compiles (or loads) the kernels that gl precision calls and the
     stages' loops they call (the clipper, the transform, the line stage,
-    the resolves), and rendering the scene files (JSON and glTF) and random
-    scenes at 1, 4 and 8 samples afterwards adds no compiled specialisation
-    to any of their dispatchers.  numba types an array with whether it is
-    read-only, and a scene's arrays are read-only or not by where they come
-    from (a mesh's default vertex colours and the verifier's derived scenes
-    are fresh arrays): the kernels' inputs go through
-    `softras.kernels.scratch.read_only`, without which the line kernel, the
-    clipper and the set-up compiled again at a user's first render of such
-    a scene.  A draw of a few triangles is set up by `_setup_range` alone,
-    and an MSAA picture is resolved by `_resolve_bytes` (GL's patterns) or
-    `_resolve_exact` (any other): the preparation reaches them too."""
-    program = f"""
-import json, sys
-from pathlib import Path
-import numba
-sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
-import softras
-from softras.kernels import draw, light, lines, maps, prepare, setup, texture, texture_beyond
-from softras.pipeline import clip, ops, rasterize, vertex
-from softras.pipeline import lines as line_stage
-from softras.renderer import render_scene
-from test_fastpath import lit_scene, random_line_scene, random_scene
-
-prepare.cache_dir = lambda: Path({str(tmp_path)!r})
-modules = (draw, light, lines, maps, setup, texture, texture_beyond, clip, ops, rasterize, vertex, line_stage)
-def compiled():
-    found = {{f"{{m.__name__}}.{{n}}": len(d.signatures) for m in modules for n, d in vars(m).items()
-              if isinstance(d, numba.core.registry.CPUDispatcher)}}
-    return found | {{f"draw_tiles {{key}}": len(d.signatures) for key, d in draw._DRAW_TILES.items()}}
-for variant in [*draw._DRAW_TILES, prepare.LINES]:
-    prepare.prepare(variant)
-before = compiled()
-folder = Path({str(SCENES_DIR)!r})
-scenes = [softras.load_scene(p) for p in sorted([*folder.glob("*.json"), *folder.glob("*.glb")])]
-scenes += [softras.load_scene(f(seed)) for seed in range(4) for f in (random_scene, random_line_scene)]
-scenes += [softras.load_scene(lit_scene(seed, shading)) for seed in range(2) for shading in ("flat", "gouraud", "phong")]
-for scene in scenes:
-    for samples, pattern in ((None, None), (4, None), (8, "halton")):
-        render_scene(scene, precision="gl", samples=samples, pattern=pattern)
-print(json.dumps([before, compiled()]))
-"""
-    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=600,
-                          env={**os.environ, prepare.ENV: prepare.MODE_WAIT})
-    assert done.returncode == 0, done.stderr[-3000:]
-    before, after = json.loads(done.stdout.splitlines()[-1])
+    the resolves), and rendering the scene files and random scenes at 1, 4
+    and 8 samples afterwards adds no compiled specialisation to any of
+    their dispatchers (`new_specialisations`).  numba types an array with
+    whether it is read-only, and a scene's arrays are read-only or not by
+    where they come from (a mesh's default vertex colours and the
+    verifier's derived scenes are fresh arrays): the kernels' inputs go
+    through `softras.kernels.scratch.read_only`, without which the line
+    kernel, the clipper and the set-up compiled again at a user's first
+    render of such a scene.  A draw of a few triangles is set up by
+    `_setup_range` alone, and an MSAA picture is resolved by
+    `_resolve_bytes` (GL's patterns) or `_resolve_exact` (any other): the
+    preparation reaches them too."""
+    before, after = new_specialisations(
+        tmp_path, ["draw", "light", "lines", "maps", "setup", "texture", "texture_beyond"],
+        ["clip", "ops", "rasterize", "vertex", "lines"],
+        "from softras.kernels import draw\nfor variant in [*draw._DRAW_TILES, prepare.LINES]:\n"
+        "    prepare.prepare(variant)",
+        [{"precision": "gl"}, {"precision": "gl", "samples": 4},
+         {"precision": "gl", "samples": 8, "pattern": "halton"}])
     for key in fastpath._DRAW_TILES:
-        assert before[f"draw_tiles {key}"] == 1, f"the preparation did not compile the driver {key}"
+        assert before[f"softras.kernels.draw._DRAW_TILES[{key}]"] == 1, f"the preparation missed the driver {key}"
     assert before["softras.kernels.lines._DRAW_LINES"] == 1, "the preparation did not compile the line kernel"
     assert before["softras.pipeline.clip.triangle_list_gl"] == 1
     assert before["softras.pipeline.ops._resolve_bytes"] == 1, "the preparation did not compile the MSAA resolve"
