@@ -21,3 +21,8 @@ In data-flow order, one draw at a time:
 `render` wires them together (`render_stages`).  The compiled path in
 `softras.kernels` must give the same bytes; `softras.renderer` chooses.
 """
+
+from softras.pipeline import numba_fixes
+
+# Before any stage or kernel compiles: numba's compile, faster (the same code).
+numba_fixes.install()
