@@ -57,12 +57,12 @@ def pytest_sessionstart(session):
 
         # Every variant: the tile drivers, exact precision's kernels and the
         # line kernel.  Two workers: the textured drivers and lines on one
-        # (the drivers share the filters and maps they call, compiled once:
-        # 1t ~127 s with them, 0t ~63, lines ~17), the rest on the other (1u
-        # ~66 s with the stages' kernels, 4u ~34, 0u ~38, exact ~95 once the
-        # textured worker has cached `_beyond_texel`, which it shares):
-        # docs/speed.md, "Twenty-third round" and "Twenty-fourth round".
-        # More workers: every count-th variant.
+        # (the drivers share the filters and maps they call, compiled once),
+        # the rest on the other (exact last, once the textured worker has
+        # cached `_beyond_texel`, which it shares), which then compiles the
+        # stages' loops too: ~150 s of one core each from a cold cache
+        # (docs/speed.md, "Twenty-seventh round").  More workers: every
+        # count-th variant.
         shares = [[(1, False), (4, False), (0, False), prepare.EXACT],
                   [(1, True), (0, True), prepare.LINES]]
         variants = [variant for share in shares for variant in share]
@@ -72,7 +72,7 @@ def pytest_sessionstart(session):
         mine = shares[index % 2] if count == 2 else variants[index % count::count]
         for variant in mine:
             prepare.prepare(variant)
-        if index == count - 1:          # (two workers: the share that is ready ~35 s sooner)
+        if index == 0:                  # (two workers: the share that is ready ~25 s sooner)
             _compile_stage_loops()
     if not session.config.getoption("--update-golden", default=False):
         return
