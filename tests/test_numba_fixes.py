@@ -11,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+from types import SimpleNamespace
 
 from numba.core import inline_closurecall, ir_utils
 
@@ -81,6 +82,22 @@ def test_the_fixes_are_installed_on_this_numba():
     assert numba_fixes.install()            # once: a second call changes nothing
     assert getattr(inline_closurecall.InlineWorker.inline_ir, "__wrapped__", None) is not None
     assert getattr(inline_closurecall.InlineWorker.inline_ir.__wrapped__, "_softras", False) is False
+
+
+def test_numba_is_left_alone_where_it_is_not_as_expected():
+    class Worker:
+        def inline_ir(self):
+            pass
+
+    for inliner, passes in ((SimpleNamespace(InlineWorker=Worker), SimpleNamespace(copy=copy, copy_propagate=None)),
+                            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy_propagate=None)),
+                            (SimpleNamespace(copy=copy), SimpleNamespace(copy=copy, copy_propagate=None)),
+                            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy))):
+        assert not numba_fixes.install(inliner, passes)
+        assert Worker.inline_ir.__name__ == "inline_ir" and getattr(inliner, "copy", copy) is copy
+    inliner, passes = SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None)
+    assert numba_fixes.install(inliner, passes)         # (as expected: installed)
+    assert Worker.inline_ir._softras and isinstance(inliner.copy, numba_fixes._InlinerCopy)
 
 
 def test_a_table_of_copies_is_copied_as_deepcopy_copies_it():

@@ -75,21 +75,23 @@ class _PassesCopy:
         return getattr(copy, name)
 
 
-def install() -> bool:
-    """Install both fixes (once); False where they are off or numba's
-    modules are not as expected."""
+def install(inliner=None, passes=None) -> bool:
+    """Install both fixes (once) into numba's `numba.core.inline_closurecall`
+    and `numba.core.ir_utils` (or the modules given, for the tests); False,
+    and nothing changed, where they are off or the modules are not as
+    expected."""
     if os.environ.get("SOFTRAS_NUMBA_FIXES", "1") == "0":
         return False
-    from numba.core import inline_closurecall, ir_utils
-
-    worker = inline_closurecall.InlineWorker
-    if getattr(worker.inline_ir, "_softras", False):
+    if inliner is None or passes is None:
+        from numba.core import inline_closurecall as inliner, ir_utils as passes
+    worker = getattr(inliner, "InlineWorker", None)
+    inline_ir = getattr(worker, "inline_ir", None)
+    if getattr(inline_ir, "_softras", False):
         return True
-    if inline_closurecall.copy is not copy or ir_utils.copy is not copy \
-            or not hasattr(ir_utils, "copy_propagate"):
+    if inline_ir is None or getattr(inliner, "copy", None) is not copy or getattr(passes, "copy", None) is not copy \
+            or not hasattr(passes, "copy_propagate"):
         return False
     shared = _InlinerCopy()
-    inline_ir = worker.inline_ir
 
     @functools.wraps(inline_ir)
     def _inline_ir_sharing_one_memo(*args, **kwargs):
@@ -101,6 +103,6 @@ def install() -> bool:
 
     _inline_ir_sharing_one_memo._softras = True
     worker.inline_ir = _inline_ir_sharing_one_memo
-    inline_closurecall.copy = shared
-    ir_utils.copy = _PassesCopy()
+    inliner.copy = shared
+    passes.copy = _PassesCopy()
     return True
