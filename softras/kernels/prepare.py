@@ -2,16 +2,15 @@
 
 numba compiles the kernels of `softras.kernels.draw` the first time a
 process needs them and keeps them in its on-disk cache; on a fresh clone
-(one core) that takes 35-66 s per untextured tile-driver variant (a sample
-count, textured or not), 63-127 s per textured one (the first pays for the
-filters and maps they share), 95-122 s for the exact kernels
-(`softras.kernels.exact`, the variant `EXACT`) and about 17 s for the gl
-line kernel (`softras.kernels.lines`, the variant `LINES`); 8.5 minutes in
-all in the twenty-third round, some 66 s less since textured draws at 4
-samples take the driver of any count (docs/speed.md, "Twenty-fourth
-round").  The readable stages give the same bytes (tests/test_fastpath.py,
-tests/test_exact_path.py) and compile in seconds, so a render need not
-wait: `ensure` either
+(one core, one variant after another) that takes 24-46 s per untextured
+tile-driver variant (a sample count, textured or not), 51-77 s per
+textured one (the first pays for the filters and maps they share), ~64 s
+for the exact kernels (`softras.kernels.exact`, the variant `EXACT`) and
+~12 s for the gl line kernel (`softras.kernels.lines`, the variant
+`LINES`): ~5 minutes in all since `softras.pipeline.numba_fixes` (7.4
+before; docs/speed.md, "Twenty-seventh round").  The readable stages give
+the same bytes (tests/test_fastpath.py, tests/test_exact_path.py) and
+compile in seconds, so a render need not wait: `ensure` either
 
 - "background" (`MODE_BACKGROUND`): when a variant the scene needs is not
   ready, starts one detached process (``python -m softras.kernels.prepare``,
