@@ -8,7 +8,7 @@ textured one (the first pays for the filters and maps they share), ~64 s
 for the exact kernels (`softras.kernels.exact`, the variant `EXACT`) and
 ~12 s for the gl line kernel (`softras.kernels.lines`, the variant
 `LINES`): ~5 minutes in all since `softras.pipeline.numba_fixes` (7.4
-before; docs/speed.md, "Twenty-seventh round").  The readable stages give
+minutes before; docs/speed.md, "Twenty-seventh round").  The readable stages give
 the same bytes (tests/test_fastpath.py, tests/test_exact_path.py) and
 compile in seconds, so a render need not wait: `ensure` either
 

@@ -1,6 +1,6 @@
 """Two fixes to numba's compile time, the same code compiled faster.
 
-Most of the time a cold kernel takes to compile is numba's own Python, not
+Most of the time a cold kernel took to compile was numba's own Python, not
 LLVM (docs/speed.md, "Twenty-seventh round"), and two deep copies in it
 cost time that grows as the square of a function's size:
 
