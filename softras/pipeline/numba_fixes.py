@@ -23,9 +23,10 @@ cost time that grows as the square of a function's size:
 called when `softras.pipeline` is imported, before any of softras's kernels
 compiles, and leaves numba as it is if its modules do not look as expected
 (then compiles are slower, nothing else).  ``SOFTRAS_NUMBA_FIXES=0`` turns
-it off, to measure it.  The compiled code is the same either way
-(tests/test_numba_fixes.py compares the machine code of kernels compiled
-with and without).
+it off, to measure it.  The compiled code is the same either way: every
+variant's kernels compiled with and without gave the same assembly
+(docs/speed.md), and tests/test_numba_fixes.py compares one parallel
+loop's.
 """
 
 from __future__ import annotations
