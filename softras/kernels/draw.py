@@ -58,10 +58,11 @@ for a textured draw, blending only with a blend mode (the kernel branches on
 per-draw constants outside of the per-pixel work).
 
 Why one module of ~600 lines: the tile drivers (`_make_draw_tiles`), the
-tile functions they inline (`_flat_tile`, `_flat_block`; inside a
-driver's parallel loop numba gives their arrays ``noalias``, docs/speed.md,
-"Compile time") or call (`_textured_tile`), and the Python side that picks
-a driver and hands it its arrays are one compiled unit under one cache key.
+tile functions they inline (`_flat_tile`, `_flat_block`, `_textured_tile`;
+inside a driver's parallel loop numba gives their arrays ``noalias``,
+docs/speed.md, "Compile time" and "Twenty-seventh round"), and the Python
+side that picks a driver and hands it its arrays are one compiled unit
+under one cache key.
 """
 
 from __future__ import annotations
@@ -336,9 +337,12 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
             tex_r = Texels(*tex)
             map_r = Texels(*map_tex)
             for tile in range(r, n_tiles, n_threads):
-                if textured:
+                if textured and n_samples == 1:
                     _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, map_sampler,
                                    map_r, lights, lighting, lanes, n_samples)
+                elif textured:
+                    _textured_tile_called(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r,
+                                          map_sampler, map_r, lights, lighting, lanes, n_samples)
                 else:
                     _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes,
                                count)
@@ -346,20 +350,19 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     return draw_tiles
 
 
-# What the tile code costs to compile (docs/speed.md, "Compile time").
-# numba's own inliner (``inline="always"``) copies and re-processes a callee
-# at every call site before dead branches are pruned: with the whole tile code
-# inlined into the parallel driver, every variant inlined the texture code as
-# well, and that took 102 of the 126 s that compiling the untextured driver
-# took (3.1 GB peak).  So:
-#
-# - `_flat_tile` is inlined into the driver (the body of a parallel loop gets
-#   numba's noalias on its arrays: as a separate function the 24k grid drew
-#   10-18 % slower), and the texture code is not: `_textured_tile` is a
-#   function of its own, compiled only for a textured draw, once per sample
-#   count (`numba.literally`: the count is a compile-time constant there);
-# - `_textured_tile` is not cached on its own: only the drivers are (with the
-#   kernels' source stamp), and a driver's cached code holds its code.
+# What the tile code costs to compile (docs/speed.md, "Compile time" and
+# "Twenty-seventh round").  The tile functions are inlined into the driver
+# where that pays: the body of a parallel loop gets numba's noalias on its
+# arrays.  As a separate function `_flat_tile` drew the 24k grid 10-18 %
+# slower, and `_textured_tile` textured_phong_8k_1024 6-15 % slower with
+# two threads (the floor 6-12 % in most rounds, the bump map 1-13 %).  A
+# driver inlines only the tile function its ``textured`` constant selects.
+# The driver of any sample count calls the texture code instead
+# (`_textured_tile_called`): inlined there it took ~40 s more to compile,
+# for the rarer draws.  Until the twenty-seventh round every textured
+# driver called it, because numba's inliner copied a callee's whole
+# variable table once per block (`softras.pipeline.numba_fixes`), which
+# made inlining it cost tens of seconds per variant.
 
 
 @numba.njit(error_model="numpy", inline="always")
@@ -418,7 +421,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
             n_flat = 0
 
 
-@numba.njit(error_model="numpy")
+@numba.njit(error_model="numpy", inline="always")
 def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting, lanes,
                    n_samples):
     """One 64x64 tile of a textured draw: as `_flat_tile`, but the blocks
@@ -450,7 +453,6 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     numba inlines it took 26 s of this function's compile time (numba copies
     an inlined callee's IR block by block, each block with its own copy of
     the callee's variable table)."""
-    numba.literally(n_samples)
     texels, texels32, table, ewa = tex.bytes, tex.words, tex.levels, tex.ewa
     lf, li, lu, texel = lanes.lf, lanes.li, lanes.lu, lanes.texel
     offsets, depth = samples.offsets, fb.depth
@@ -547,6 +549,17 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                         li[_LI_PASS, l] = _depth_test_lane(li[_LI_PASS, l], li, l, depth, li[_LI_PY, l],
                                                            li[_LI_PX, l], depth_func, write_z, count)
             _write_lanes(n, li, fb.color32, state.blend, count)
+
+
+@numba.njit(error_model="numpy")
+def _textured_tile_called(tile, bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights,
+                          lighting, lanes, n_samples):
+    """`_textured_tile` as a function of its own, for the driver of any
+    sample count (ANY_SAMPLES): compiled once per count (`numba.literally`:
+    the count is a compile-time constant in the inlined body)."""
+    numba.literally(n_samples)
+    _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting, lanes,
+                   n_samples)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
