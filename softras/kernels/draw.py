@@ -450,9 +450,11 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     The block's shading is written out in the block loop rather than called:
     as a function of its own (a call per block, with the records' arrays
     counted at each) it made the 1024^2 floor 16 % slower, and as a function
-    numba inlines it took 26 s of this function's compile time (numba copies
+    numba inlines it took 26 s of this function's compile time (numba copied
     an inlined callee's IR block by block, each block with its own copy of
-    the callee's variable table)."""
+    the callee's variable table, until `softras.pipeline.numba_fixes`).
+    Inlined into the one-sample driver, called by the others
+    (`_textured_tile_called`)."""
     texels, texels32, table, ewa = tex.bytes, tex.words, tex.levels, tex.ewa
     lf, li, lu, texel = lanes.lf, lanes.li, lanes.lu, lanes.texel
     offsets, depth = samples.offsets, fb.depth

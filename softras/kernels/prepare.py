@@ -5,12 +5,12 @@ process needs them and keeps them in its on-disk cache; on a fresh clone
 (one core, one variant after another) that takes 24-46 s per untextured
 tile-driver variant (a sample count, textured or not), 44-90 s per
 textured one (the first pays for the filters and maps they share, and the
-one-sample driver inlines the texture code), ~64 s
-for the exact kernels (`softras.kernels.exact`, the variant `EXACT`) and
-~12 s for the gl line kernel (`softras.kernels.lines`, the variant
-`LINES`): ~5.3 minutes in all since `softras.pipeline.numba_fixes` (7.4
-minutes before; docs/speed.md, "Twenty-seventh round").  The readable stages give
-the same bytes (tests/test_fastpath.py, tests/test_exact_path.py) and
+one-sample driver inlines the texture code), ~64 s for the exact kernels
+(`softras.kernels.exact`, the variant `EXACT`) and ~12 s for the gl line
+kernel (`softras.kernels.lines`, the variant `LINES`): ~5.3 minutes in
+all since `softras.pipeline.numba_fixes` (7.4 minutes before;
+docs/speed.md, "Twenty-seventh round").  The readable stages give the
+same bytes (tests/test_fastpath.py, tests/test_exact_path.py) and
 compile in seconds, so a render need not wait: `ensure` either
 
 - "background" (`MODE_BACKGROUND`): when a variant the scene needs is not
