@@ -17,28 +17,27 @@ import pkgutil
 import resource
 import time
 
-from numba.core.registry import CPUDispatcher
-
 import softras
+from softras.kernels import prepare
 from softras.renderer import render_scene
 from softras.scene import load_scene
 
 
 def dispatchers():
     """(name, dispatcher) of every compiled function softras defines at module
-    level, directly or in a module-level dict."""
-    seen = set()
+    level, directly or in a module-level dict or tuple
+    (`softras.kernels.prepare.dispatchers`), each once."""
+    modules = []
     for info in pkgutil.walk_packages(softras.__path__, "softras."):
         try:
-            module = importlib.import_module(info.name)
+            modules.append(importlib.import_module(info.name))
         except ImportError:
             continue
-        for key, value in vars(module).items():
-            found = value.items() if isinstance(value, dict) else [(None, value)]
-            for sub, obj in found:
-                if isinstance(obj, CPUDispatcher) and id(obj) not in seen:
-                    seen.add(id(obj))
-                    yield (f"{info.name}.{key}" + (f"[{sub}]" if sub is not None else "")), obj
+    seen = set()
+    for name, dispatcher in prepare.dispatchers(modules).items():
+        if id(dispatcher) not in seen:
+            seen.add(id(dispatcher))
+            yield name, dispatcher
 
 
 def main() -> None:

@@ -195,7 +195,6 @@ def new_specialisations(tmp_path, kernels: list[str], stages: list[str], prepara
     program = f"""
 import importlib, json, sys
 from pathlib import Path
-import numba
 sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
 import softras
 from softras.kernels import prepare
@@ -206,13 +205,7 @@ prepare.cache_dir = lambda: Path({str(tmp_path)!r})
 modules = ([importlib.import_module("softras.kernels." + name) for name in {kernels!r}]
            + [importlib.import_module("softras.pipeline." + name) for name in {stages!r}])
 def compiled():
-    found = {{}}
-    for m in modules:
-        for n, value in vars(m).items():
-            for key, d in (value.items() if isinstance(value, dict) else [(None, value)]):
-                if isinstance(d, numba.core.registry.CPUDispatcher):
-                    found[f"{{m.__name__}}.{{n}}" + ("" if key is None else f"[{{key}}]")] = len(d.signatures)
-    return found
+    return {{name: len(d.signatures) for name, d in prepare.dispatchers(modules).items()}}
 {preparation}
 before = compiled()
 folder = Path({str(SCENES_DIR)!r})
@@ -377,19 +370,13 @@ def _cached_kernels():
     import importlib
     import pkgutil
 
-    from numba.core.registry import CPUDispatcher
-
+    modules = [importlib.import_module(info.name) for info in pkgutil.walk_packages(softras.__path__, "softras.")
+               if info.name not in ("softras.__main__", "softras.pytest_plugin")]
     found = {}
-    for info in pkgutil.walk_packages(softras.__path__, "softras."):
-        if info.name in ("softras.__main__", "softras.pytest_plugin"):
-            continue
-        for value in vars(importlib.import_module(info.name)).values():
-            for item in (value.values() if isinstance(value, dict) else
-                         value if isinstance(value, tuple) else (value,)):
-                if (isinstance(item, CPUDispatcher) and item.py_func.__module__.startswith("softras.")
-                        and type(item._cache).__name__ != "NullCache"
-                        and item.targetoptions.get("inline") != "always"):
-                    found[id(item)] = item
+    for item in prepare.dispatchers(modules).values():
+        if (item.py_func.__module__.startswith("softras.") and type(item._cache).__name__ != "NullCache"
+                and item.targetoptions.get("inline") != "always"):
+            found[id(item)] = item
     return list(found.values())
 
 

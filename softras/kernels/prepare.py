@@ -321,6 +321,25 @@ def ensure(variants, stages_can_draw: bool = True) -> bool:
     return True
 
 
+def dispatchers(modules) -> dict:
+    """{name: numba dispatcher} of the compiled functions that ``modules``
+    hold at module level: each global, and each value of a module-level
+    dict or tuple (the tile drivers in `softras.kernels.draw._DRAW_TILES`),
+    named "module.global" or "module.global[key]".  A function that several
+    modules import is there under each name.  (What the preparation must
+    reach: tests/test_prepare.py counts their specialisations;
+    scripts/compile_profile.py reports their compile times.)"""
+    found = {}
+    for module in modules:
+        for name, value in vars(module).items():
+            items = (value.items() if isinstance(value, dict) else
+                     enumerate(value) if isinstance(value, tuple) else [(None, value)])
+            for key, item in items:
+                if isinstance(item, numba.core.registry.CPUDispatcher):
+                    found[f"{module.__name__}.{name}" + ("" if key is None else f"[{key}]")] = item
+    return found
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m softras.kernels.prepare 1u 0t exact lines ...``: prepare the
     variants (`name`: samples, then u untextured or t textured; exact; lines)
