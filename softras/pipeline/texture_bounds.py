@@ -30,8 +30,11 @@ The room GL allows, and the figure used for each
    f(x, y) with ``max(m_u, m_v) <= f <= m_u + m_v``, ``m_u = max(|du/dx|,
    |du/dy|)``, ``m_v = max(|dv/dx|, |dv/dy|)``.  The exact rho lies in that
    range, so [max(m_u, m_v), m_u + m_v] is the range per derivative pair.
-   (dEQP's ``computeLodBoundsFromDerivates`` allows sqrt(2) (m_u + m_v) on
-   top: ``LodPrecision.rho_max_factor``, 1 here, the spec's figure.)
+   (dEQP's ``computeLodBoundsFromDerivates`` uses the same m_u + m_v for GL
+   and has a relaxed rule for Vulkan, ``LodPrecision::RULE_VULKAN``;
+   ``LodPrecision.rho_max_factor`` widens the upper end, 1 here, the spec's
+   figure. sqrt(2) would also admit the footprint's major axis, which an
+   NVIDIA H200 uses: docs/verification.md, "On a GPU".)
 2. **Derivatives** (GLSL 4.60 section 8.14.1: dFdx / dFdy may be "coarse"
    or "fine"; implicit derivatives of texture() are either): per 2x2 quad
    (quads at even window x, y, helper pixels included) the x difference of
@@ -158,7 +161,8 @@ class LodPrecision:
     derivative_bits : relative precision of rho (dEQP ``derivateBits``).
     lod_bits : fractional bits of lambda, +-2^-lod_bits (dEQP ``lodBits``).
     log2_error : lambda may also be this much LOWER (a piecewise-linear log2).
-    rho_max_factor : f <= rho_max_factor (m_u + m_v); 1 = the spec, sqrt(2) = dEQP.
+    rho_max_factor : f <= rho_max_factor (m_u + m_v); 1 = the spec, sqrt(2) also admits the
+        footprint's major axis (the Jacobian's largest singular value).
     """
 
     derivative_bits: int = 18
