@@ -280,18 +280,37 @@ def test_texel_bounds_widen_the_result():
     assert np.median(lo - lo2) >= 10 / 255 - EPS and np.median((hi2 - hi)[:, :3]) >= 10 / 255 - EPS
 
 
-def test_variant_derivatives_hit_the_extreme_lambdas():
+def test_variant_derivatives_hit_the_chosen_lambdas():
+    """Each of MAP_LODS: the lookup takes the range's ends, its middle, or
+    its first / last whole level (the middle where the range holds none)."""
     tex = make_texture("noise", (64, 64), "linear_mipmap_linear", "linear")
     rng = np.random.default_rng(6)
     _, ddx, ddy = random_footprints(rng, 500, tex.size, lam=(0.1, 5))
     c = tb.single_derivatives(ddx, ddy)
     lam_lo, lam_hi = tb.lambda_range(c, tex.size)
+    middle = 0.5 * (lam_lo + lam_hi)
+    first, last = np.ceil(lam_lo), np.floor(lam_hi)
+    expected = {"lowest": lam_lo, "highest": lam_hi, "middle": middle,
+                "first_level": np.where(first <= lam_hi, first, middle),
+                "last_level": np.where(last >= lam_lo, last, middle)}
+    assert set(expected) == set(tb.MAP_LODS)
+    assert (first <= lam_hi).sum() > 50 and (first > lam_hi).sum() > 50        # both cases drawn
     for precision in ("gl", "exact"):
-        for side, lam in (("lo", lam_lo), ("hi", lam_hi)):
-            _, vx, vy = tb.variant_derivatives(tex, c, side, precision)
+        for where, lam in expected.items():
+            _, vx, vy = tb.variant_derivatives(tex, c, where, precision)
             du, dv = texture.texel_derivatives(vx, vy, tex.size, precision == "gl")
             choice = texture.choose_levels(texture.rho_squared(du, dv), tex.min_filter, 7, precision == "gl")
-            np.testing.assert_allclose(choice.level0 + choice.frac, np.clip(lam, 0, 6), atol=1e-5)
+            np.testing.assert_allclose(choice.level0 + choice.frac, np.clip(lam, 0, 6), atol=1e-5,
+                                       err_msg=f"{where} ({precision})")
+
+
+def test_bound_render_names():
+    assert tb.bound_render("lo") == ("lo", "lowest") and tb.bound_render("hi") == ("hi", "highest")
+    assert tb.bound_render("hi/first_level") == ("hi", "first_level")
+    assert len(tb.BOUND_RENDERS) == 8
+    for bad in ("mid", "lo/lowest", "lo/", "middle"):
+        with pytest.raises(ValueError, match="texture_bounds"):
+            tb.bound_render(bad)
 
 
 # --------------------------------------------------------------------------- renders
@@ -299,10 +318,14 @@ def test_variant_derivatives_hit_the_extreme_lambdas():
 
 def scene_envelope(scene):
     """Per-channel min and max (H, W, 4) int of the bounds renders "lo" and
-    "hi" at precision "gl" and "exact" (for normal / bump maps the renders
-    are variants, so the min and max are over all four)."""
+    "hi" at precision "gl" and "exact"; for normal / bump maps, whose renders
+    are variants, also the maps' other levels of detail in gl, as the
+    verifier takes them (`softras.verification.verifier.spec_bounds`)."""
     renders = [render_scene(scene, precision=precision, texture_bounds=side).astype(int)
                for precision in ("gl", "exact") for side in tb.SIDES]
+    if any(d.material.normal_map or d.material.bump_map for d in scene.draws):
+        renders += [render_scene(scene, precision="gl", texture_bounds=value).astype(int)
+                    for value in tb.BOUND_RENDERS if "/" in value]
     return np.minimum.reduce(renders), np.maximum.reduce(renders)
 
 
@@ -508,9 +531,11 @@ def gl_pictures(request, tmp_path_factory):
 def test_gl_within_bounds(gl_pictures, name):
     """Every pixel of llvmpipe's and softpipe's picture that is not a
     coverage edge lies within the bounds renders +- 2/255.  Scenes with
-    normal / bump maps only have an envelope of two variants (lighting is not
-    monotone in the lambda between them): up to VARIANT_ALLOWANCE of their
-    pixels may fall outside (measured: bump_mapped_plane 43 on llvmpipe)."""
+    normal / bump maps only have an envelope of variants (the maps at five
+    lambdas of the permitted range; lighting is not monotone in the lambda
+    between them): up to VARIANT_ALLOWANCE of their pixels may fall outside
+    (measured: bump_mapped_plane 30 on llvmpipe and 4 on softpipe, 63 and 4
+    with the range's ends alone)."""
     driver, pictures = gl_pictures
     scene, lo, hi, edge = envelope(name)
     bad = outside(pictures[name], lo, hi, edge)

@@ -115,10 +115,11 @@ def mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
     per fragment (softras.pipeline.fragment: tangent frames from Mesh.tangents,
     the map sampled like any texture, with the uv's derivatives).
 
-    texture_bounds "lo" / "hi": the map sampled at the lowest / highest level
-    of detail GL permits (`softras.pipeline.texture_bounds.variant_derivatives`): the
-    normal goes through lighting, so this is an envelope by variants, not a
-    bound."""
+    texture_bounds (`softras.pipeline.texture_bounds.BOUND_RENDERS`): the map
+    sampled at one level of detail GL permits, the lowest for "lo", the
+    highest for "hi", else the one named after the "/"
+    (`softras.pipeline.texture_bounds.variant_derivatives`): the normal goes
+    through lighting, so these are an envelope by variants, not a bound."""
     mesh, material = draw.mesh, draw.material
     gl = precision == "gl"
     tangents = vertex.world_tangents(mesh.tangents, draw.world)
@@ -129,7 +130,8 @@ def mapped_normals(scene, draw, persp, corners, tris, t, frags, centres, normal,
     if texture_bounds is not None:
         candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], frags.x, frags.y,
                                                     centres, corner_uv)
-        tex, ddx, ddy = texbounds.variant_derivatives(tex, candidates, texture_bounds, precision)
+        _, where = texbounds.bound_render(texture_bounds)
+        tex, ddx, ddy = texbounds.variant_derivatives(tex, candidates, where, precision)
     if material.normal_map is not None:
         mapped = fragment.normal_map_normals(texture.sample(tex, st, ddx, ddy, precision, texture_fixed_point))
     else:
@@ -165,7 +167,9 @@ def render_stages(scene: Scene, *, precision: str = "gl", samples: int | None = 
         lower / upper bound of what a conformant GL implementation may return
         (`softras.pipeline.texture_bounds.lookup_bounds`; stages only, no texture_filter);
         normal and bump maps are sampled at the lowest / highest permitted
-        level of detail instead (an envelope by variants, not a bound).
+        level of detail instead (an envelope by variants, not a bound);
+        "lo/middle", "hi/last_level" and the like sample the maps at another
+        permitted level of detail (`softras.pipeline.texture_bounds.BOUND_RENDERS`).
     tie_rule : which edges own a sample exactly on them (`softras.pipeline.setup.TIE_RULES`):
         "left_bottom" (llvmpipe's, default) or another rule GL allows (stages only).
 
@@ -213,8 +217,9 @@ class Job:
         if resolve_filter not in ops.RESOLVE_FILTERS:
             raise ValueError(f"resolve_filter must be one of {ops.RESOLVE_FILTERS}, not {resolve_filter!r}")
         texture_beyond.check_texture_filter(texture_filter, scene.textures)
-        if texture_bounds not in (None,) + texbounds.SIDES:
-            raise ValueError(f"texture_bounds must be None, 'lo' or 'hi', not {texture_bounds!r}")
+        if texture_bounds not in (None,) + texbounds.BOUND_RENDERS:
+            raise ValueError(f"texture_bounds must be None or one of {texbounds.BOUND_RENDERS}, "
+                             f"not {texture_bounds!r}")
         if tie_rule not in setup.TIE_RULES:
             raise ValueError(f"tie_rule must be one of {', '.join(setup.TIE_RULES)}, not {tie_rule!r}")
         if texture_bounds is not None and texture_filter is not None:
@@ -506,7 +511,7 @@ def draw_triangles(scene: Scene, draw, inputs: Pass, color: np.ndarray, depth: n
                 else:       # every derivative GL permits: quad differences and analytic
                     candidates = texbounds.fragment_derivatives(tris.window[t], tris.inv_w[t], chunk.x,
                                                                 chunk.y, centres, corner_uv)
-                    texel = texbounds.render_bound(tex, st, candidates, texture_bounds)
+                    texel = texbounds.render_bound(tex, st, candidates, texbounds.bound_render(texture_bounds)[0])
             rgba = fragment.shade_unlit(colors, np.ones(4), texel)
             x, y, mask = chunk.x, chunk.y, chunk.mask
             if material.alpha_cutoff is not None:      # discard: no depth or colour write for any sample

@@ -144,10 +144,33 @@ from softras.pipeline.texture import MipTexture
 __all__ = [
     "LodPrecision", "LookupPrecision", "DerivativeCandidates", "LOG2_PIECEWISE_LINEAR_ERROR",
     "float_error", "fragment_derivatives", "single_derivatives", "lambda_range", "level_extremes",
-    "lookup_bounds", "variant_derivatives", "generated_levels", "render_bound", "SIDES",
+    "lookup_bounds", "variant_derivatives", "generated_levels", "render_bound", "SIDES", "MAP_LODS",
+    "BOUND_RENDERS", "bound_render",
 ]
 
 SIDES = ("lo", "hi")
+
+# Where a normal or bump map's variant render takes its level of detail in
+# the permitted range [lam_lo, lam_hi] (:func:`variant_derivatives`): its
+# two ends, its middle, or the first / last whole level inside it (a pure
+# level: the trilinear blend's kinks).
+MAP_LODS = ("lowest", "highest", "middle", "first_level", "last_level")
+
+# The values of ``render_scene(texture_bounds=...)`` (:func:`bound_render`).
+BOUND_RENDERS = SIDES + tuple(f"{side}/{where}" for side in SIDES for where in MAP_LODS[2:])
+
+
+def bound_render(value: str) -> tuple[str, str]:
+    """(side, map_lod) of a ``texture_bounds`` render option: colour textures
+    return their lower or upper bound (side "lo" / "hi", :func:`render_bound`),
+    normal and bump maps are sampled at one of `MAP_LODS`
+    (:func:`variant_derivatives`).  "lo" is ("lo", "lowest"), "hi" ("hi",
+    "highest"); "lo/middle", "hi/first_level" and so on pair a side with
+    another of the map's levels of detail (`BOUND_RENDERS`)."""
+    if value not in BOUND_RENDERS:
+        raise ValueError(f"texture_bounds must be one of {BOUND_RENDERS}, not {value!r}")
+    side, _, where = value.partition("/")
+    return side, where or ("lowest" if side == "lo" else "highest")
 
 #: max over x in [1, 2) of log2(x) - (x - 1), at x = 1 / ln 2: 0.08607.
 LOG2_PIECEWISE_LINEAR_ERROR = math.log2(1.0 / math.log(2.0)) - (1.0 / math.log(2.0) - 1.0)
@@ -605,12 +628,17 @@ def _anisotropic_bounds(tex, st, candidates, lam_lo, lam_hi, levels_lo, levels_h
 # ----------------------------------------------------------------------------- renders
 
 
-def variant_derivatives(tex: MipTexture, candidates: DerivativeCandidates, side: str,
+def variant_derivatives(tex: MipTexture, candidates: DerivativeCandidates, where: str,
                         precision: str = "exact", lod: LodPrecision = LOD):
-    """Derivatives that make `softras.pipeline.texture.sample` use the lowest ("lo")
-    or highest ("hi") permitted lambda, for normal and bump maps: their
-    lighting is not monotone in the texel, so these are an envelope by
-    variants, not a bound.
+    """Derivatives that make `softras.pipeline.texture.sample` use one
+    permitted lambda, for normal and bump maps: ``where`` (`MAP_LODS`) the
+    lowest or highest lambda of :func:`lambda_range`, its middle, or the
+    first or last whole level inside it (``middle`` where there is none; the
+    range's -inf end counts as level 0, as magnification reads it).  Their
+    lighting is not monotone in the texel, nor in lambda, so the renders at
+    these lambdas are an envelope by variants, not a bound: with the ends
+    alone an NVIDIA H200's bump-mapped sphere was 22/255 outside where its
+    lambda was inside (docs/verification.md, "On a GPU").
 
     Returns (tex', ddx, ddy): tex' the texture with anisotropy off (the
     variants are isotropic lookups), ddx (F, 2) = (rho / W, 0) and ddy = 0
@@ -620,13 +648,28 @@ def variant_derivatives(tex: MipTexture, candidates: DerivativeCandidates, side:
     variant also has llvmpipe's fixed-point filter arithmetic.
     lambda = -inf gives zero derivatives (magnification).
     """
-    if side not in SIDES:
-        raise ValueError(f"texture_bounds must be one of {SIDES}, not {side!r}")
+    if where not in MAP_LODS:
+        raise ValueError(f"a map's level of detail must be one of {MAP_LODS}, not {where!r}")
     lam_lo, lam_hi = lambda_range(candidates, tex.size, lod)
     if tex.max_anisotropy > 1:
         lam_lo = np.minimum(lam_lo, _anisotropic_lambda_low(candidates, tex.size, lod))
         tex = dataclasses.replace(tex, max_anisotropy=1.0)
-    lam = np.minimum(lam_lo if side == "lo" else lam_hi, 64.0)
+    if where == "lowest":
+        lam = lam_lo
+    elif where == "highest":
+        lam = lam_hi
+    else:
+        with np.errstate(invalid="ignore"):
+            middle = np.where(np.isfinite(lam_lo), 0.5 * (lam_lo + lam_hi), lam_hi - 0.5)
+            if where == "middle":
+                lam = middle
+            elif where == "first_level":
+                first = np.maximum(np.ceil(lam_lo), 0.0)
+                lam = np.where(first <= lam_hi, first, middle)
+            else:
+                last = np.floor(lam_hi)
+                lam = np.where((last >= lam_lo) & (last >= 0.0), last, middle)
+    lam = np.minimum(lam, 64.0)
     if precision == "gl":
         doubled = 2.0 * lam
         whole = np.floor(np.where(np.isfinite(doubled), doubled, 0.0))
@@ -740,7 +783,7 @@ def render_bound(tex: MipTexture, st: np.ndarray, candidates: DerivativeCandidat
     a mipmapped texture's levels bounded as GL may generate them
     (:func:`generated_levels`)."""
     if side not in SIDES:
-        raise ValueError(f"texture_bounds must be one of {SIDES}, not {side!r}")
+        raise ValueError(f"a texture bound's side must be one of {SIDES}, not {side!r}")
     if len(tex.used_levels) > 1 and "levels_lo" not in precision:
         levels_lo, levels_hi = generated_levels(tex)
         precision = precision | {"levels_lo": levels_lo, "levels_hi": levels_hi}

@@ -49,7 +49,9 @@ lines                 section 14.5.1, rule 1: each of a line's fragments may
                       have moved away).
 textures              section 8.14 (LOD approximations, coordinate and filter
                       precision, mip generation): :mod:`softras.pipeline.texture_bounds`
-                      via ``render_scene(texture_bounds="lo" | "hi")``.
+                      via ``render_scene(texture_bounds="lo" | "hi")``;
+                      normal and bump maps at five lambdas of the permitted
+                      range (``"lo/middle"`` and the like: an envelope).
 colour conversion     section 2.3.5.2: a float colour is converted to one of
                       the two nearest 8-bit values: 1/255.
 blending              section 17.3.6: each blend reads the rounded 8-bit
@@ -349,7 +351,8 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
     -------
     Bounds
         The envelope of the module docstring's variants (10 renders, 4
-        more with textures, 9 more with lines).
+        more with textures, 6 more with normal or bump maps, 9 more with
+        lines).
     """
     render = render or _default_render
     caps = capabilities or {}
@@ -379,6 +382,13 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
             for side in ("lo", "hi"):
                 variants.append((f"texture bounds {side} ({precision})", scene,
                                  {"precision": precision, "texture_bounds": side}))
+    if any(getattr(d.material, "normal_map", None) or getattr(d.material, "bump_map", None) for d in scene.draws):
+        # Lighting is not monotone in a map's level of detail: more lambdas
+        # than the range's ends (`softras.pipeline.texture_bounds.MAP_LODS`).
+        for side in ("lo", "hi"):
+            for where in ("middle", "first_level", "last_level"):
+                variants.append((f"texture bounds {side}/{where} (gl)", scene,
+                                 {"precision": "gl", "texture_bounds": f"{side}/{where}"}))
     pattern = gl_positions(scene, caps)
     lo = hi = None
     pictures = {}
