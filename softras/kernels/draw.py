@@ -572,11 +572,13 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
     `softras.pipeline.render.draw_triangles` does them.
     Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
-    depths (vectorised), the depth test keeping the lanes with a passed
-    sample (scalar, without branches; a draw without depth test or alpha
-    test keeps every lane, vectorised), perspective weights and colour bytes
-    (vectorised), the writes (scalar); an alpha-tested draw's alpha test
-    comes first, on weights at every lane.
+    depths (vectorised), the depth test (scalar, without branches): unlit,
+    each lane in its place (a failed lane is shaded and not written), lit
+    per fragment (Phong) or alpha-tested, keeping the lanes with a passed
+    sample; a draw without depth test or alpha test keeps every lane
+    (vectorised); perspective weights and colour bytes (vectorised), the
+    writes (scalar); an alpha-tested draw's alpha test comes first, on
+    weights at every lane.
 
     The arrays one by one, not as `Triangles`, `Samples`, `Framebuffer` and
     `LaneBuffers` records: this runs about once per small triangle, and the
@@ -600,7 +602,18 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
             li[_LI_PASS, l] = li[_LI_COV, l]
             lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
         kept = np.int64(n)
-    else:
+    elif not (state.alpha_test or state.lit):
+        # Unlit: the lanes keep their places through the depth test, and a
+        # failed lane is shaded and not written (`_write_lanes` writes passed
+        # samples only): the weights and colour bytes are vectorised loops,
+        # cheaper than moving the passed lanes to the front one by one.
+        for l in range(n):
+            li[_LI_PASS, l] = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l],
+                                               depth_func, write_z, n_samples)
+        for l in range(n):
+            lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
+        kept = np.int64(n)
+    else:                                   # Phong or alpha-tested: the passed lanes to the front
         for l in range(n):
             px, py = li[_LI_PX, l], li[_LI_PY, l]
             p = li[_LI_COV, l]
