@@ -114,8 +114,9 @@ texel has, levels far off, and wrong wrap.
 
 Normal and bump maps go through lighting, which is not monotone in the
 texel, so their "bounds" are variants instead (:func:`variant_derivatives`):
-the map sampled at the lowest / highest permitted lambda, an envelope by
-variants, not a strict bound.
+the map sampled at the lowest / highest permitted lambda, and at its middle
+and first / last whole level (`MAP_LODS`), an envelope by variants, not a
+strict bound.
 
 Cost: linear filters are evaluated at 3 x 3 points (9 taps) per candidate
 level, typically 1-3 levels; with the 5 derivative candidates a bounds render
