@@ -307,23 +307,34 @@ def _sample_mean(color, y, x, c):
     return total / color.shape[2]
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _unorm8_byte(v):
+    """`softras.pipeline.ops.unorm8_bytes` of one float: ``rint(clamp(v, 0,
+    1) * 255)``, NaN giving 0 as numpy's conversion gives it (a select, no
+    branch)."""
+    byte = np.uint8(np.rint(min(max(v, 0.0), 1.0) * 255.0))
+    return np.uint8(0) if v != v else byte
+
+
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _resolve_box(color, out):
     """`softras.pipeline.ops.resolve` (box filter, exact arithmetic, uint8
-    output): out[H - 1 - y, x] = `softras.pipeline.ops.unorm8_bytes` of the
-    mean of color[y, x]'s samples, ``rint(clamp(mean, 0, 1) * 255)``, NaN
-    giving 0 as numpy's conversion gives it.  color (H, W, S, 4) float64,
-    out (H, W, 4) uint8."""
-    height, width = color.shape[0], color.shape[1]
+    output): out[H - 1 - y, x] = `_unorm8_byte` of the mean of color[y, x]'s
+    samples.  color (H, W, S, 4) float64, out (H, W, 4) uint8.  One sample
+    is its own mean (a division by 1 is exact): that row is converted
+    without the mean's loop over the samples (the 512^2 resolve 1.36 ->
+    0.67 ms on one thread)."""
+    height, width, n_samples = color.shape[0], color.shape[1], color.shape[2]
     for y in numba.prange(height):
         row = height - 1 - y
-        for x in range(width):
-            for c in range(4):
-                mean = _sample_mean(color, y, x, c)
-                if mean != mean:
-                    out[row, x, c] = 0
-                else:
-                    out[row, x, c] = np.uint8(np.rint(min(max(mean, 0.0), 1.0) * 255.0))
+        if n_samples == 1:
+            for x in range(width):
+                for c in range(4):
+                    out[row, x, c] = _unorm8_byte(color[y, x, 0, c])
+        else:
+            for x in range(width):
+                for c in range(4):
+                    out[row, x, c] = _unorm8_byte(_sample_mean(color, y, x, c))
 
 
 def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.ndarray) -> None:
