@@ -32,6 +32,7 @@ GALLIVM_PERF, read once per process and recorded by `glref.info()`.
 
 from __future__ import annotations
 
+import contextlib
 from importlib import resources
 
 import numpy as np
@@ -65,6 +66,10 @@ _SHADER_FILES = ("unlit.vert", "unlit.frag")
 _programs: dict[tuple[str, ...], object] = {}
 _cache_ctx = None
 _framebuffer0 = None
+
+# The diagnostic probe in force (`fragment_probe`): (shader, define,
+# extensions, expression), or None.
+_probe: tuple | None = None
 
 
 def _blend_state(mgl, blend: str):
@@ -101,7 +106,35 @@ def _shader_source(name: str, defines: tuple[str, ...], prelude: str = "") -> st
         raise RuntimeError(f"glref: shader {name} must start with a #version line")
     lines = "".join(f"#define {d.replace('=', ' ')}\n" if "=" in d else f"#define {d} 1\n"
                     for d in defines)
+    if _probe is not None and _probe[0] == name and _probe[1] in defines:
+        _, _, extensions, expression = _probe
+        lines = "".join(f"#extension {e} : require\n" for e in extensions) + lines
+        end = rest.rstrip().rfind("}")
+        # (The shaded colour stays a vanishing term: no uniform glref sets is optimised away.)
+        rest = rest[:end] + f"    f_color = ({expression}) + step(vec4(1e30), abs(f_color)) * 1e-30;\n}}\n"
     return f"{first}\n{lines}{prelude}#line 2\n{rest}"
+
+
+@contextlib.contextmanager
+def fragment_probe(expression: str, *, shader: str, when: str, extensions: tuple[str, ...] = ()):
+    """Within the block, the fragment shader ``shader`` ("lit.frag" or
+    "unlit.frag") in its variants with the #define ``when`` writes the GLSL
+    vec4 ``expression`` (over the shader's own names) as its colour: a probe
+    that asks the GL what it computed (scripts/lod_query.py: the texture's
+    level of detail; scripts/msaa_shading.py: the samples an invocation
+    covers).  ``extensions``: the GLSL extensions the expression requires.
+    Programs compiled before or inside the block are dropped on entry and
+    exit; render to an rgba32f framebuffer to read unclamped values."""
+    global _probe
+    if shader not in ("lit.frag", "unlit.frag"):
+        raise ValueError(f"glref: a probe replaces lit.frag's or unlit.frag's output, not {shader!r}'s")
+    _programs.clear()
+    _probe = (shader, when, tuple(extensions), expression)
+    try:
+        yield
+    finally:
+        _probe = None
+        _programs.clear()
 
 
 def _reset_cache(ctx) -> None:

@@ -30,7 +30,6 @@ judges it and this machine's llvmpipe.
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,36 +54,21 @@ def scenes() -> dict:
 
 def draw(scenes_by_name: dict) -> dict:
     """{name: (H, W) float32 lambda} from this process's GL: glref's Phong
-    shader with its last statement replaced by the LOD query (background NaN)."""
+    shader writes the bump map's LOD query (`glref.render.fragment_probe`;
+    background NaN)."""
     import dataclasses
 
     import glref
-    render = importlib.import_module("glref.render")
-    original = render._shader_source
+    from glref.render import fragment_probe
 
-    def query_lod(name, defines, prelude=""):
-        text = original(name, defines, prelude)
-        if name == "lit.frag" and "BUMP_MAP" in defines:
-            first, _, rest = text.partition("\n")
-            text = f"{first}\n#extension GL_ARB_texture_query_lod : require\n{rest}"
-            end = text.rstrip().rfind("}")
-            # The shaded colour stays a (vanishing) input, so no uniform is optimised away.
-            text = (text[:end] + "    f_color = vec4(textureQueryLOD(u_bump_map, v_uv), 0.0, 1.0)"
-                    " + step(vec4(1e30), abs(f_color)) * 1e-30;\n}\n")
-        return text
-
-    render._shader_source = query_lod
-    render._programs.clear()
-    try:
-        out = {}
+    out = {}
+    with fragment_probe("vec4(textureQueryLOD(u_bump_map, v_uv), 0.0, 1.0)", shader="lit.frag", when="BUMP_MAP",
+                        extensions=("GL_ARB_texture_query_lod",)):
         for name, scene in scenes_by_name.items():
-            picture = glref.render(dataclasses.replace(scene, background=(0.0, 0.0, 0.0, 0.0)),
-                                   samples=1, framebuffer="rgba32f")
+            picture = glref.render(dataclasses.replace(scene, background=np.zeros(4)), samples=1,
+                                   framebuffer="rgba32f")
             out[name] = np.where(picture[..., 3] > 0, picture[..., 1], np.nan).astype(np.float32)
-        return out
-    finally:
-        render._shader_source = original
-        render._programs.clear()
+    return out
 
 
 @dataclass

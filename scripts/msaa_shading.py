@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib
 import json
 import sys
 from pathlib import Path
@@ -38,31 +37,18 @@ import softras  # noqa: E402
 SCENES = ("texture_mip_level_colors", "texture_floor_trilinear")
 
 
-def query_shader(original):
-    """glref's `_shader_source` with the unlit textured fragment shader's
-    output replaced by (samples covered / 16, dFdx(gl_FragCoord.x), LOD, 1)."""
-    def source(name, defines, prelude=""):
-        text = original(name, defines, prelude)
-        if name == "unlit.frag" and "HAS_TEXTURE" in defines:
-            first, _, rest = text.partition("\n")
-            text = (f"{first}\n#extension GL_ARB_gpu_shader5 : require\n"
-                    f"#extension GL_ARB_texture_query_lod : require\n{rest}")
-            end = text.rstrip().rfind("}")
-            # (The shaded colour stays a vanishing input: no uniform is optimised away.)
-            text = (text[:end] + "    f_color = vec4(float(bitCount(gl_SampleMaskIn[0])) / 16.0, dFdx(gl_FragCoord.x),"
-                    " textureQueryLOD(u_texture, v_uv).y, 1.0) + step(vec4(1e30), abs(f_color)) * 1e-30;\n}\n")
-        return text
-    return source
+# Per invocation: the samples it covers / 16, dFdx(gl_FragCoord.x), the texture's LOD, 1.
+PROBE = ("vec4(float(bitCount(gl_SampleMaskIn[0])) / 16.0, dFdx(gl_FragCoord.x), "
+         "textureQueryLOD(u_texture, v_uv).y, 1.0)")
 
 
 def measure() -> tuple[dict, dict]:
     """({scene@count: figures}, {scene@count: (H, W, 4) float32 picture})."""
-    render = importlib.import_module("glref.render")
-    original = render._shader_source
-    render._shader_source = query_shader(original)
-    render._programs.clear()
+    from glref.render import fragment_probe
+
     figures, pictures = {}, {}
-    try:
+    with fragment_probe(PROBE, shader="unlit.frag", when="HAS_TEXTURE",
+                        extensions=("GL_ARB_gpu_shader5", "GL_ARB_texture_query_lod")):
         for name in SCENES:
             scene = softras.load_scene(REPO / "scenes" / f"{name}.json")
             scene = dataclasses.replace(scene, background=np.zeros(4))
@@ -77,9 +63,6 @@ def measure() -> tuple[dict, dict]:
                                                for q in (5, 50, 95)],
                     "dFdx_fragcoord": [float(np.percentile(picture[..., 1][inside], q)) for q in (5, 50, 95)],
                     "lod_median": float(np.median(picture[..., 2][inside]))}
-    finally:
-        render._shader_source = original
-        render._programs.clear()
     return figures, pictures
 
 
