@@ -358,8 +358,9 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
     caps = capabilities or {}
     bits = int(caps.get("subpixel_bits") or 4)
     shift = np.sqrt(2.0) * 2.0 ** -bits
-    textured = any(d.material.texture is not None or getattr(d.material, "normal_map", None)
-                   or getattr(d.material, "bump_map", None) for d in scene.draws)
+    mapped = any(getattr(d.material, "normal_map", None) or getattr(d.material, "bump_map", None)
+                 for d in scene.draws)
+    textured = mapped or any(d.material.texture is not None for d in scene.draws)
     from softras.verification.ambiguity import shifted_scene
 
     variants: list[tuple[str, object, dict]] = [
@@ -382,7 +383,7 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
             for side in ("lo", "hi"):
                 variants.append((f"texture bounds {side} ({precision})", scene,
                                  {"precision": precision, "texture_bounds": side}))
-    if any(getattr(d.material, "normal_map", None) or getattr(d.material, "bump_map", None) for d in scene.draws):
+    if mapped:
         # Lighting is not monotone in a map's level of detail: more lambdas
         # than the range's ends (`softras.pipeline.texture_bounds.MAP_LODS`).
         for side in ("lo", "hi"):
