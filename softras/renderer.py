@@ -1,13 +1,14 @@
 """Which renderer draws a scene: the compiled kernels, the readable stages, or GL.
 
-`render_scene` is softras's renderer: a gl-precision RGBA8 scene (any
-sample count and pattern) that uses only what `softras.kernels` implements
-is drawn by their fused per-draw kernel, everything else by the readable stages of
-`softras.pipeline`; the two give the same bytes (tests/test_fastpath.py).
-In exact precision, triangle draws take the exact kernel
-(`softras.kernels.exact`), line draws `softras.kernels.exact_lines`, and the
-draws they leave out (normal and bump maps, anisotropic filtering) the
-stages, into the same buffers (tests/test_exact_path.py).  Kernels not compiled yet are compiled by a
+`render_scene` is softras's renderer: a gl-precision scene (RGBA8 or
+rgba32f, any sample count and pattern) that uses only what `softras.kernels`
+implements is drawn by their fused per-draw kernel, everything else by the
+readable stages of `softras.pipeline`; the two give the same bytes
+(tests/test_fastpath.py, tests/test_rgba32f_path.py).  In exact precision,
+triangle draws take the exact kernel (`softras.kernels.exact`), line draws
+`softras.kernels.exact_lines`, and the draws they leave out (textured or
+mapped draws with ``texture_bounds``) the stages, into the same buffers
+(tests/test_exact_path.py).  Kernels not compiled yet are compiled by a
 background process while the stages draw (`softras.kernels.prepare`).
 `render` adds the choice of backend ("soft" or "gl", i.e. glref) behind
 `softras.render`.
@@ -18,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from softras.kernels import draw as kernels
-from softras.kernels import exact, prepare
+from softras.kernels import exact, prepare, rgba32f
 from softras.pipeline import render as stages
 from softras.scene import Scene, load_scene
 
@@ -51,11 +52,11 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
         if prepare.ensure([prepare.EXACT]):
             return exact.resolve(job, exact.render_samples(scene, job, reuse=True))
         return stages.resolve(job, stages.render_samples(scene, job))
-    # A gl-precision RGBA8 scene that uses only what the kernels implement
-    # gets the same bytes from their fused kernel (tests/test_fastpath.py).
-    # A new option must either send scenes that use it past this test or be
+    # A gl-precision scene that uses only what the kernels implement gets
+    # the same bytes from their fused kernel (tests/test_fastpath.py).  A new
+    # option must either send scenes that use it past this test or be
     # implemented there.
-    fast = (fast_path and job.rgba8 and texture_bounds is None and tie_rule == "left_bottom"
+    fast = (fast_path and texture_bounds is None and tie_rule == "left_bottom"
             and kernels.unsupported(scene, precision=precision, clipping=clipping) is None)
     if fast:
         # Unless the kernels are ready (or compiled now), a background process
@@ -69,8 +70,9 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
     if not fast:
         return stages.resolve(job, stages.render_samples(scene, job))
     stored = kernels.render_samples(scene, job.positions, texture_fixed_point=texture_fixed_point,
-                                    reuse=True, texture_filter=texture_filter)     # (the resolve copies it)
-    return stages.resolve_bytes(job, stored)
+                                    reuse=True, texture_filter=texture_filter,
+                                    rgba8=job.rgba8)           # (the resolve copies it)
+    return stages.resolve_bytes(job, stored) if job.rgba8 else rgba32f.resolve(job, stored)
 
 
 def render(scene, backend: str = "soft", **options) -> np.ndarray:

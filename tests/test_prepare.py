@@ -256,20 +256,23 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
     kernel, the clipper and the set-up compiled again at a user's first
     render of such a scene.  A draw of a few triangles is set up by
     `_setup_range` alone, and an MSAA picture is resolved by
-    `_resolve_bytes` (GL's patterns) or `_resolve_exact` (any other): the
+    `_resolve_bytes` (GL's patterns) or `_resolve_exact` (any other), an
+    rgba32f one by `softras.kernels.rgba32f._resolve_floats`: the
     preparation reaches them too."""
     before, after = new_specialisations(
-        tmp_path, ["draw", "light", "lines", "maps", "setup", "texture", "texture_beyond"],
+        tmp_path, ["draw", "light", "lines", "maps", "rgba32f", "setup", "texture", "texture_beyond"],
         ["clip", "ops", "rasterize", "vertex", "lines"],
         "from softras.kernels import draw\nfor variant in [*draw._DRAW_TILES, prepare.LINES]:\n"
         "    prepare.prepare(variant)",
         [{"precision": "gl"}, {"precision": "gl", "samples": 4},
-         {"precision": "gl", "samples": 8, "pattern": "halton"}])
+         {"precision": "gl", "samples": 8, "pattern": "halton"},
+         {"precision": "gl", "framebuffer": "rgba32f"}, {"precision": "gl", "samples": 4, "framebuffer": "rgba32f"}])
     for key in fastpath._DRAW_TILES:
         assert before[f"softras.kernels.draw._DRAW_TILES[{key}]"] == 1, f"the preparation missed the driver {key}"
     assert before["softras.kernels.lines._DRAW_LINES"] == 1, "the preparation did not compile the line kernel"
     assert before["softras.pipeline.clip.triangle_list_gl"] == 1
     assert before["softras.pipeline.ops._resolve_bytes"] == 1, "the preparation did not compile the MSAA resolve"
+    assert before["softras.kernels.rgba32f._resolve_floats"] == 1, "the preparation missed the rgba32f resolve"
     assert {name: n for name, n in after.items() if n != before[name]} == {}
 
 

@@ -32,7 +32,9 @@ naming the readable function it must equal:
    blend and write (`softras.kernels.ops`).  No fragment list exists.
 
 The framebuffer here is what gl precision stores anyway: colour as RGBA8
-bytes and depth as 24-bit integers (`softras.kernels.ops`).
+bytes and depth as 24-bit integers (`softras.kernels.ops`); an rgba32f
+framebuffer's colour as the stages' float32 values, its fragment colours
+and writes by `softras.kernels.rgba32f`.
 
 Line draws take `softras.kernels.lines` (clipping, set-up, coverage and the
 per-fragment work in one compiled kernel, with the line stage's functions,
@@ -86,9 +88,11 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI
                                    LaneBuffers)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
-from softras.kernels.ops import Framebuffer, _depth_test_lane, _uses_depth, _write_lanes, clear
+from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lane, _uses_depth, _write_lanes,
+                                 clear, clear_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_whole_block, _tile_box)
+from softras.kernels.rgba32f import _float_fragments
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
 from softras.kernels.stamp import sources_stamp
@@ -105,8 +109,10 @@ from softras.pipeline.texture import WRAP_CODES
 from softras.scene import Scene, ordered_draws
 
 # Bytes a sample holds here: RGBA8 colour and a 24-bit depth in an int32
-# (the stages hold 32 for the colour alone: 4096^2 at 4x fits here, not there).
+# (the stages hold 32 for the colour alone: 4096^2 at 4x fits here, not
+# there); an rgba32f framebuffer's float32 colour and the depth.
 SAMPLE_BYTES = 4 + 4
+SAMPLE_BYTES_RGBA32F = 16 + 4
 
 # A draw's sample positions: offsets (S, 2) int64 in raster units
 # (`softras.pipeline.setup.sample_offsets`, gl) and positions (S, 2) float64
@@ -122,9 +128,11 @@ Samples = namedtuple("Samples", ["offsets", "positions"])
 # `softras.kernels.light._phong_words`), the alpha test (whether, and its
 # cutoff: `softras.kernels.interpolate._lane_alpha_test`), whether a texture
 # multiplies the colour, the normal or bump map (NO_MAP, NORMAL_MAP or
-# BUMP_MAP: `softras.kernels.maps._map_normals`) and the bump scale.
+# BUMP_MAP: `softras.kernels.maps._map_normals`), the bump scale, and
+# whether the framebuffer is rgba32f (`softras.kernels.ops.Framebuffer`'s
+# color_f: the colours and writes of `softras.kernels.rgba32f`).
 DrawState = namedtuple("DrawState", ["depth_func", "write_z", "blend", "plain", "flat", "lit", "alpha_test",
-                                     "cutoff", "texture", "mapped", "bump_scale"])
+                                     "cutoff", "texture", "mapped", "bump_scale", "rgba32f"])
 NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
 
 
@@ -134,9 +142,10 @@ NO_MAP, NORMAL_MAP, BUMP_MAP = 0, 1, 2
 def unsupported(scene: Scene, *, precision: str, clipping: str | None) -> str | None:
     """Why ``scene`` must take the general pipeline, or None when this path
     renders it.  The caller (`softras.renderer.render_scene`) has already
-    checked the options this path does not look at (RGBA8 framebuffer,
-    texture bounds, tie rule); every ``texture_filter`` is drawn here
-    (`softras.kernels.texture_beyond._beyond_lane`)."""
+    checked the options this path does not look at (texture bounds, tie
+    rule); every ``texture_filter`` is drawn here
+    (`softras.kernels.texture_beyond._beyond_lane`), into an RGBA8 or an
+    rgba32f framebuffer (`softras.kernels.rgba32f`)."""
     if precision != "gl":
         return "precision is not gl"
     if clipping not in (None, "llvmpipe"):
@@ -161,42 +170,50 @@ def textured(material) -> bool:
 
 
 def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: bool = True,
-                   reuse: bool = False, texture_filter=None) -> np.ndarray:
+                   reuse: bool = False, texture_filter=None, rgba8: bool = True) -> np.ndarray:
     """`softras.pipeline.render.render_samples` of a scene that `unsupported`
     accepts, at any sample positions (S, 2) in [0, 1): in the stages' passes
     of at most `softras.pipeline.sampling.MAX_PASS_SAMPLES` (coverage masks
     in one integer; `softras.pipeline.sampling.sample_passes`).
 
     Returns the per-sample colour buffer (H, W, S, 4) uint8, GL's y-up rows:
-    byte k where the general pipeline stores the float k/255.  reuse: the
+    byte k where the general pipeline stores the float k/255; with rgba8
+    False (an rgba32f framebuffer) float32, the stages' values.  reuse: the
     buffer is this thread's scratch colour buffer, overwritten by the next
     call (for a caller that copies it at once; saves the page faults of a
     fresh buffer; one pass only).  texture_filter: None, or one of
     softras's filters for some or all textures
     (`softras.pipeline.texture_beyond.FILTERS`).
     """
-    check_sample_memory(scene, len(positions), SAMPLE_BYTES)
+    check_sample_memory(scene, len(positions), SAMPLE_BYTES if rgba8 else SAMPLE_BYTES_RGBA32F)
 
     def render_pass(pass_positions):
         # (A pass of several is copied at once: it may take the scratch buffer.)
         return _render_pass(scene, pass_positions, texture_fixed_point, reuse or len(pass_positions) < len(positions),
-                            texture_filter)
+                            texture_filter, rgba8)
 
     return sampling.in_passes(positions, render_pass)
 
 
 def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool, reuse: bool,
-                 texture_filter=None) -> np.ndarray:
+                 texture_filter=None, rgba8: bool = True) -> np.ndarray:
     """`render_samples` of one pass's positions (S, 2): the
-    draws into this pass's byte framebuffer, (H, W, S, 4) uint8 colour."""
+    draws into this pass's framebuffer, (H, W, S, 4) uint8 colour (float32
+    unless rgba8)."""
     offsets, _ = setup.sample_offsets(positions, "gl")
     shape = (scene.height, scene.width, len(positions))
     depth = _scratch.take("depth", shape, np.int32)
-    color = _scratch.take("color", shape + (4,), np.uint8) if reuse else np.empty(shape + (4,), np.uint8)
+    dtype = np.uint8 if rgba8 else np.float32
+    color = (_scratch.take("color" if rgba8 else "color_f", shape + (4,), dtype) if reuse
+             else np.empty(shape + (4,), dtype))
     offsets = np.ascontiguousarray(offsets, np.int64)
     positions = np.ascontiguousarray(positions, np.float64)
-    clear(color, depth, ops.unorm8_bytes(ops.premultiplied(scene.background)))
-    fb = Framebuffer(color.view(np.uint32).reshape(shape), depth)
+    if rgba8:
+        clear(color, depth, ops.unorm8_bytes(ops.premultiplied(scene.background)))
+        fb = Framebuffer(color.view(np.uint32).reshape(shape), depth, NO_FLOATS)
+    else:
+        clear_floats(color, depth, ops.premultiplied(scene.background))
+        fb = Framebuffer(NO_WORDS, depth, color)
     for draw in ordered_draws(scene):
         if draw.mesh.primitive == "lines":
             draw_lines(scene, draw, fb, positions)
@@ -253,11 +270,12 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
     bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     cutoff = material.alpha_cutoff
+    rgba32f = fb.color_f is not NO_FLOATS
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
                       bool(material.texture is not None and not flat and not lit and cutoff is None
-                           and plain_colors(base)), flat, lit,
+                           and not rgba32f and plain_colors(base)), flat, lit,
                       cutoff is not None, float(cutoff or 0.0), material.texture is not None, mapped,
-                      float(material.bump_scale))
+                      float(material.bump_scale), rgba32f)
     is_textured = textured(material)
     draw_tiles = _DRAW_TILES[driver_samples(len(offsets), is_textured), is_textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
@@ -387,7 +405,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     offsets, positions = samples.offsets, samples.positions
     bin_start, bin_tri = bins.start, bins.tri
     tri_f, tri_i, bbox, colors, uv, lit = tris.f, tris.i, tris.bbox, tris.colors, tris.uv, tris.lit
-    color32, depth = fb.color32, fb.depth
+    color32, depth, color_f = fb.color32, fb.depth, fb.color_f
     full_mask = (1 << n_samples) - 1
     box = _sample_box(offsets)
     for j in range(bin_start[tile], bin_start[tile + 1]):
@@ -416,8 +434,8 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
                     continue
             elif n_flat == 0:
                 break
-            _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights, lighting,
-                        lf, li, n_samples)
+            _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, color32, color_f, state, lights,
+                        lighting, lf, li, n_samples)
             n_flat = 0
 
 
@@ -538,8 +556,11 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                     if li[_LI_PASS, l]:
                         _sample_lane(l, lf, li, texel, sampler, texels, texels32, table, ewa)
             # The fragment colour as llvmpipe's bytes, blended and written
-            # (`softras.pipeline.ops.apply_fragments`).
-            if state.lit:
+            # (`softras.pipeline.ops.apply_fragments`); an rgba32f buffer's
+            # floats after the alpha test (`softras.kernels.rgba32f`).
+            if state.rgba32f:
+                pass
+            elif state.lit:
                 _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, state.texture,
                              state.mapped != NO_MAP)
             elif not words:
@@ -550,7 +571,11 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                     if use_depth and li[_LI_PASS, l]:
                         li[_LI_PASS, l] = _depth_test_lane(li[_LI_PASS, l], li, l, depth, li[_LI_PY, l],
                                                            li[_LI_PX, l], depth_func, write_z, count)
-            _write_lanes(n, li, fb.color32, state.blend, count)
+            if state.rgba32f:
+                _float_fragments(n, t, tris.colors, tris.lit, lf, li, lights, lighting, state, fb.color_f,
+                                 np.int64(count))
+            else:
+                _write_lanes(n, li, fb.color32, state.blend, count)
 
 
 @numba.njit(error_model="numpy")
@@ -565,7 +590,7 @@ def _textured_tile_called(tile, bins, tris, samples, fb, state, sampler, tex, ma
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, lights, lighting, lf, li,
+def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, color_f, state, lights, lighting, lf, li,
                 n_samples):
     """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
     fragments (`softras.pipeline.fragment.shade_unlit` colours), as
@@ -630,6 +655,9 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, state, 
             kept += p != 0
     if not state.alpha_test and not state.flat:
         _lane_weights(kept, t, tri_f, lf, uv, False)
+    if state.rgba32f:
+        _float_fragments(kept, t, colors, lit, lf, li, lights, lighting, state, color_f, np.int64(n_samples))
+        return
     if state.lit:
         _phong_words(kept, t, colors, lit, lf, li, lights, lighting, False, False)
     else:

@@ -20,7 +20,8 @@ fragment list:
    in the `_line_t` of the pixel) and `softras.pipeline.fragment.shade_unlit`
    as `softras.pipeline.ops.unorm8` converts it, then
    `softras.pipeline.ops.apply_fragments`' depth test, blend and write into
-   the compiled path's byte framebuffer (`softras.kernels.ops`).
+   the compiled path's byte framebuffer (`softras.kernels.ops`), or its
+   float colour into an rgba32f buffer.
 
 Two parallel passes: the set-up by lines, then the coverage by bands of
 rows, where each thread walks all the lines in order over its own rows, so
@@ -36,7 +37,7 @@ import numba
 import numpy as np
 
 from softras.kernels.interpolate import RGBA, _color_word
-from softras.kernels.ops import _depth_k, _depth_pass_k, _write_word
+from softras.kernels.ops import NO_FLOATS, _depth_k, _depth_pass_k, _write_floats, _write_word
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
@@ -64,8 +65,8 @@ BAND = 64
 
 
 def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
-    """One GL_LINES draw into the byte framebuffer `softras.kernels.ops.Framebuffer`
-    fb at the sample positions (S, 2) in [0, 1), S <= 32 (GL's: S > 1
+    """One GL_LINES draw into the framebuffer `softras.kernels.ops.Framebuffer`
+    fb (RGBA8 words, or rgba32f floats) at the sample positions (S, 2) in [0, 1), S <= 32 (GL's: S > 1
     draws llvmpipe's rectangular lines, `softras.pipeline.lines`)."""
     mesh = draw.mesh
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
@@ -82,7 +83,8 @@ def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
     _DRAW_LINES(c, finite, read_only(mesh.indices, np.int64), planes,
                 read_only(vertex_colors(mesh), np.float64), read_only(draw.material.color, np.float64),
                 offsets, np.ascontiguousarray(positions, np.float64), rectangular,
-                lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.depth, depth_func,
+                lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.color_f, fb.color_f is not NO_FLOATS,
+                fb.depth, depth_func,
                 bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend], *table,
                 numba.get_num_threads())
 
@@ -97,8 +99,8 @@ def _make_draw_lines(sources: str):
 
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_lines_kernel(c, finite, indices, planes, values, material, offsets, positions, rectangular, shift,
-                          color32, depth, depth_func, write_z, blend, drawn, qx, qy, region, window, inv_w, ends,
-                          n_threads):
+                          color32, color_f, rgba32f, depth, depth_func, write_z, blend, drawn, qx, qy, region, window,
+                          inv_w, ends, n_threads):
         """Every line of a draw: clipped and set up in parallel (`_set_up_lines`,
         thread r lines r, r + n_threads, ...), then covered, shaded and
         written in parallel by bands of BAND rows (`_cover_lines`, thread
@@ -117,8 +119,9 @@ def _make_draw_lines(sources: str):
             _set_up_lines(np.int64(r), n_threads, c, dist, finite, indices, values, rectangular, depth.shape[1],
                           depth.shape[0], drawn, qx, qy, region, window, inv_w, ends)
         for r in numba.prange(n_threads):
-            _cover_lines(np.int64(r), n_threads, material, offsets, positions, rectangular, shift, color32, depth,
-                         depth_func, write_z, blend, LineTable(drawn, qx, qy, region, window, inv_w, ends))
+            _cover_lines(np.int64(r), n_threads, material, offsets, positions, rectangular, shift, color32, color_f,
+                         rgba32f, depth, depth_func, write_z, blend,
+                         LineTable(drawn, qx, qy, region, window, inv_w, ends))
 
     return draw_lines_kernel
 
@@ -160,8 +163,8 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
 
 
 @numba.njit(error_model="numpy")
-def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift, color32, depth, depth_func,
-                 write_z, blend, table):
+def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift, color32, color_f, rgba32f, depth,
+                 depth_func, write_z, blend, table):
     """The set-up lines of the `LineTable` in order, in the bands of rows
     r, r + n_threads, ... (BAND rows each): covered (`_raster_quad`'s rows
     and columns), and each covered pixel shaded and applied at once.
@@ -169,9 +172,10 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
     material (4,) the material colour; offsets (S, 2) the samples in raster
     units and positions (S, 2) within the pixel
     (`softras.pipeline.lines.rasterize_lines`); rectangular: MSAA lines;
-    shift: `softras.pipeline.lines.attribute_shift`; color32, depth: the
-    byte framebuffer (`softras.kernels.ops`); the draw's depth function,
-    depth write and blend codes."""
+    shift: `softras.pipeline.lines.attribute_shift`; color32, color_f,
+    depth: the framebuffer (`softras.kernels.ops.Framebuffer`), its colour
+    in color_f's floats when rgba32f, else in color32's words; the draw's
+    depth function, depth write and blend codes."""
     n_samples = depth.shape[2]
     unit = np.float64(FIXED_ONE)
     centre = 0.5 + shift
@@ -218,17 +222,22 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
                 if passed == 0:
                     continue
                 # interpolate_lines at the pixel's t, then shade_unlit's
-                # (vertex x material), premultiplied, as bytes.
+                # (vertex x material), premultiplied, as bytes (or floats).
                 t = _line_t(x0, y0, x1, y1, px + centre, py + centre, rectangular, True)
                 q0 = (1.0 - t) * inv_w0
                 q1 = t * inv_w1
                 total = q0 + q1
                 b0, b1 = q0 / total, q1 / total
-                word = _color_word((b0 * ends[line, 0, 0] + b1 * ends[line, 1, 0]) * material[0],
-                                   (b0 * ends[line, 0, 1] + b1 * ends[line, 1, 1]) * material[1],
-                                   (b0 * ends[line, 0, 2] + b1 * ends[line, 1, 2]) * material[2],
-                                   (b0 * ends[line, 0, 3] + b1 * ends[line, 1, 3]) * material[3], white)
-                _write_word(color32, py, px, passed, n_samples, blend, word)
+                red = (b0 * ends[line, 0, 0] + b1 * ends[line, 1, 0]) * material[0]
+                green = (b0 * ends[line, 0, 1] + b1 * ends[line, 1, 1]) * material[1]
+                blue = (b0 * ends[line, 0, 2] + b1 * ends[line, 1, 2]) * material[2]
+                alpha = (b0 * ends[line, 0, 3] + b1 * ends[line, 1, 3]) * material[3]
+                if rgba32f:
+                    _write_floats(color_f, py, px, passed, n_samples, blend, red * alpha, green * alpha,
+                                  blue * alpha, alpha)
+                else:
+                    _write_word(color32, py, px, passed, n_samples, blend,
+                                _color_word(red, green, blue, alpha, white))
 
 
 _DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize, clip_stage))

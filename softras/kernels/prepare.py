@@ -239,11 +239,12 @@ def prepare(variant) -> None:
     samples, textured): in gl precision, without lines, at 2 samples for
     the driver of any count, and above one sample both box resolves of
     its samples, `softras.pipeline.render.resolve_bytes`' compiled loops;
-    EXACT: textured, in exact precision) or LINES `line_preparation_scene`
+    and an rgba32f framebuffer's box resolve,
+    `softras.kernels.rgba32f._resolve_floats`; EXACT: textured, in exact precision) or LINES `line_preparation_scene`
     (gl precision), then mark it ready."""
     if ready(variant):
         return
-    from softras.kernels import draw
+    from softras.kernels import draw, rgba32f
     from softras.pipeline import ops, sampling
     from softras.scene import load_scene
 
@@ -273,6 +274,9 @@ def prepare(variant) -> None:
             if len(positions) > 1:      # the box resolves: llvmpipe's (GL's patterns) and the exact mean's
                 ops.resolve_llvmpipe_bytes(stored)
                 ops.resolve_exact_bytes(stored)
+            # An rgba32f framebuffer's box resolve (its colours and writes
+            # are the driver's own, `softras.kernels.rgba32f._float_fragments`).
+            rgba32f._resolve_floats(np.zeros((1, 1, 2, 4), np.float32), np.empty((1, 1, 4), np.float32))
         _mark(variant).touch()
 
 
