@@ -112,6 +112,8 @@ LEVELS = [
     Level("exact_16", EXACT_16, "exact, 16 samples, rotated grid", max_pixels=1 << 20),
     Level("exact_64", {"precision": "exact", "samples": 64, "pattern": "rotated_grid"},
           "exact, 64 samples, rotated grid", quick=False, max_pixels=1 << 18),
+    Level("gl_rgba32f", {"precision": "gl", "framebuffer": "rgba32f"},
+          "gl precision into an rgba32f framebuffer (float32 colour; glref's rgba32f too)"),
     Level("gl_ripmap", {"precision": "gl", "texture_filter": "ripmap"}, "ripmap texture filter",
           textured_only=True),
     Level("gl_ewa", {"precision": "gl", "texture_filter": "ewa"}, "EWA texture filter", textured_only=True),
@@ -348,21 +350,23 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
     scene = softras.load_scene(scene_dict)
     triangles = sum(len(d.mesh.indices) for d in scene.draws)
     pixels = scene.width * scene.height
-    gl_times = {None: _median_time(lambda: softras.render(scene, backend="gl"), runs)[0]}
+    gl_times = {(None, None): _median_time(lambda: softras.render(scene, backend="gl"), runs)[0]}
     truth = truth_image(scene) if errors and truth_factor(scene) >= 2 else None
     rows = []
     for level in levels:
         if not applicable(level, scene, full):
             continue
         # glref at the level's sample count where GL draws it (GL's pattern),
-        # else at the scene's own: the ratio compares like with like.
+        # else at the scene's own, and into the level's framebuffer: the
+        # ratio compares like with like.
         gl_samples = level.options.get("samples")
         if level.options.get("pattern") not in (None, "gl") or gl_samples == scene.samples:
             gl_samples = None
-        if gl_samples not in gl_times:
-            gl_times[gl_samples] = _median_time(
-                lambda: softras.render(scene, backend="gl", samples=gl_samples), runs)[0]
-        gl_seconds = gl_times[gl_samples]
+        gl_key = (gl_samples, level.options.get("framebuffer"))
+        if gl_key not in gl_times:
+            gl_times[gl_key] = _median_time(
+                lambda: softras.render(scene, backend="gl", samples=gl_key[0], framebuffer=gl_key[1]), runs)[0]
+        gl_seconds = gl_times[gl_key]
         try:
             seconds, image = _median_time(lambda: softras.render(scene, **level.options), runs)
         except (TypeError, ValueError, NotImplementedError) as error:
@@ -371,8 +375,8 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
             continue
         peak = _peak_mib(lambda: softras.render(scene, **level.options)) if memory else None
         mean_error = bad = None
-        if truth is not None:
-            diff = np.abs(image.astype(float) - truth)
+        if truth is not None:       # (an rgba32f picture's floats on the bytes' 0..255 scale)
+            diff = np.abs(image.astype(float) * (255.0 if image.dtype == np.float32 else 1.0) - truth)
             mean_error = float(diff.mean())
             bad = float((diff.max(axis=2) > 2).mean())
         row = Row(name, triangles, pixels, level.name, seconds, gl_seconds, seconds / gl_seconds,

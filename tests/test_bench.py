@@ -66,10 +66,14 @@ def test_level_table_one_line_per_level_and_applicability():
 @pytest.mark.gl
 def test_measure_reports_every_level_with_errors_against_the_supersampled_truth():
     rows = bench.measure("tiny", bench.grid_scene(4, 32), runs=1,
-                         levels={"gl": {"precision": "gl"}, "exact_16": bench.EXACT_16})
-    assert [r.level for r in rows] == ["gl", "exact_16"]
+                         levels={"gl": {"precision": "gl"}, "exact_16": bench.EXACT_16,
+                                 "gl_rgba32f": {"precision": "gl", "framebuffer": "rgba32f"}})
+    assert [r.level for r in rows] == ["gl", "exact_16", "gl_rgba32f"]
     # 16 samples a pixel come closer to the 256-sample truth than one.
     assert 0 < rows[1].mean_error < rows[0].mean_error and rows[1].bad_fraction <= rows[0].bad_fraction
+    # An rgba32f picture is judged on the bytes' scale: the same error as
+    # RGBA8 but for the bytes' rounding (at most half a step a channel).
+    assert abs(rows[2].mean_error - rows[0].mean_error) <= 0.5
     assert all(r.seconds > 0 and r.ratio == pytest.approx(r.seconds / r.glref_seconds) for r in rows)
     assert all(r.peak_mib > 0 and r.rss_mib > 0 for r in rows)
     assert rows[0].mtri_per_s == pytest.approx(32 / rows[0].seconds / 1e6)
@@ -82,21 +86,25 @@ def test_measure_reports_every_level_with_errors_against_the_supersampled_truth(
 
 def test_glref_is_timed_at_the_levels_gl_sample_count(monkeypatch):
     """gl_msaa4 on a 1-sample scene is compared with glref's 4x MSAA; a
-    level at a pattern GL does not have, with glref at the scene's count."""
+    level at a pattern GL does not have, with glref at the scene's count;
+    gl_rgba32f with glref's rgba32f framebuffer."""
     import softras
     calls = []
     real = softras.render
 
     def render(scene, backend="soft", **options):
         if backend == "gl":
-            calls.append(options.get("samples"))
+            calls.append((options.get("samples"), options.get("framebuffer")))
         return real(scene, backend=backend, **options)
     monkeypatch.setattr(softras, "render", render)
     rows = bench.measure("tiny", bench.grid_scene(2, 16), runs=1, errors=False, memory=False,
                          levels={"gl": {"precision": "gl"}, "gl_msaa4": {"precision": "gl", "samples": 4},
-                                 "gl_16": {"precision": "gl", "samples": 16, "pattern": "rotated_grid"}})
-    assert {samples for samples in calls if samples is not None} == {4}, calls      # (16: GL has no such pattern)
+                                 "gl_16": {"precision": "gl", "samples": 16, "pattern": "rotated_grid"},
+                                 "gl_rgba32f": {"precision": "gl", "framebuffer": "rgba32f"}})
+    # (16: GL has no such pattern; rgba32f: glref's own rgba32f framebuffer.)
+    assert set(calls) - {(None, None)} == {(4, None), (None, "rgba32f")}, calls
     assert rows[1].glref_seconds != rows[0].glref_seconds and rows[2].glref_seconds == rows[0].glref_seconds
+    assert rows[3].glref_seconds not in (rows[0].glref_seconds, rows[1].glref_seconds)
 
 
 def test_file_times_takes_at_least_the_minimum_of_interleaved_pairs(monkeypatch):
