@@ -269,13 +269,36 @@ def test_the_compiled_resolve_gives_the_stages_bytes(samples):
     assert np.array_equal(exact.resolve(job, color), expected)
 
 
-def test_the_compiled_resolve_leaves_the_tent_and_rgba32f_to_the_stages():
+def test_the_compiled_resolve_leaves_the_tent_to_the_stages():
     scene = softras.load_scene(random_scene(0))
     color = np.random.default_rng(0).random((scene.height, scene.width, 4, 4))
-    for options in ({"resolve_filter": "tent", "samples": 4}, {"framebuffer": "rgba32f", "samples": 4}):
+    for options in ({"resolve_filter": "tent", "samples": 4}, {"resolve_filter": "tent", "samples": 4,
+                                                              "framebuffer": "rgba32f"}):
         job = exact_job(scene, **options)
         out, expected = exact.resolve(job, color), stages.resolve(job, color)
         assert out.dtype == expected.dtype and np.array_equal(out, expected), options
+
+
+@pytest.mark.parametrize("samples", [1, 4, 9, 32])
+def test_the_compiled_rgba32f_resolve_gives_the_stages_floats(samples):
+    """An rgba32f picture's box filter from the float64 samples
+    (`softras.kernels.rgba32f._resolve_floats`): the stages' float32 means
+    bit for bit (NaN where NaN; -0.0 samples give +0.0, as numpy's mean
+    from 0.0 does), infinities, NaN and values far out of [0, 1] among them."""
+    rng = np.random.default_rng(samples)
+    color = rng.normal(0.5, 2.0, (37, 23, samples, 4))
+    special = [np.nan, np.inf, -np.inf, -0.0, 0.0, 1e-320, 1e300, -1e300]
+    pick = rng.random(color.shape) < 0.1
+    color[pick] = rng.choice(special, int(pick.sum()))
+    color[0, 0] = -0.0
+    scene = softras.load_scene(random_scene(0))
+    job = exact_job(scene, samples=samples, pattern="halton" if samples not in (1, 4) else None,
+                    framebuffer="rgba32f")
+    with np.errstate(invalid="ignore", over="ignore"):
+        expected = stages.resolve(job, color)
+    out = exact.resolve(job, color)
+    nan = np.isnan(expected) & np.isnan(out)
+    assert out.dtype == np.float32 and not ((out.view(np.uint32) != expected.view(np.uint32)) & ~nan).any()
 
 
 def test_the_reused_framebuffer_is_the_stages_cleared_one():

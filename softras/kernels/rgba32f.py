@@ -104,8 +104,9 @@ def _resolve_floats(color, out):
     out[H - 1 - y, x, c] = the float64 mean of color[y, x, :, c] as numpy's
     ``mean(axis=2, dtype=float64)`` takes it (from 0.0, the samples added
     in order, then divided by their count: a pixel of -0.0 samples gives
-    +0.0), rounded to float32.  color (H, W, S, 4) float32, out (H, W, 4)
-    float32.  One sample is its own mean (a division by 1 is exact): that
+    +0.0), rounded to float32.  color (H, W, S, 4) float32 (gl precision)
+    or float64 (exact precision, `softras.kernels.exact.resolve`), out (H,
+    W, 4) float32.  One sample is its own mean (a division by 1 is exact): that
     row is ``0.0 + sample``, without the loop over the samples."""
     height, width, n_samples = color.shape[0], color.shape[1], color.shape[2]
     for y in numba.prange(height):
