@@ -98,27 +98,34 @@ def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
     return out
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _sample_mean(color, y, x, c):
+    """``color[y, x, :, c]``'s mean as `softras.pipeline.ops.resolve`'s box
+    filter takes it, numpy's ``mean(axis=2, dtype=float64)``: from 0.0, the
+    samples added in order, then divided by their count (so -0.0 samples
+    give +0.0).  Also exact precision's (`softras.kernels.exact._resolve_box`)."""
+    total = 0.0
+    for s in range(color.shape[2]):
+        total += color[y, x, s, c]
+    return total / color.shape[2]
+
+
 @numba.njit(cache=True, parallel=True, error_model="numpy")
 def _resolve_floats(color, out):
     """`softras.pipeline.ops.resolve`'s box filter with float32 output:
-    out[H - 1 - y, x, c] = the float64 mean of color[y, x, :, c] as numpy's
-    ``mean(axis=2, dtype=float64)`` takes it (from 0.0, the samples added
-    in order, then divided by their count: a pixel of -0.0 samples gives
-    +0.0), rounded to float32.  color (H, W, S, 4) float32 (gl precision)
-    or float64 (exact precision, `softras.kernels.exact.resolve`), out (H,
-    W, 4) float32.  One sample is its own mean (a division by 1 is exact): that
-    row is ``0.0 + sample``, without the loop over the samples."""
+    out[H - 1 - y, x, c] = `_sample_mean` of color[y, x, :, c] rounded to
+    float32.  color (H, W, S, 4) float32 (gl precision) or float64 (exact
+    precision, `softras.kernels.exact.resolve`), out (H, W, 4) float32.  One
+    sample is its own mean (a division by 1 is exact): that row is ``0.0 +
+    sample``, without the loop over the samples."""
     height, width, n_samples = color.shape[0], color.shape[1], color.shape[2]
     for y in numba.prange(height):
         row = height - 1 - y
-        if n_samples == 1:
+        if n_samples == 1:              # (two loops, as `softras.kernels.exact._resolve_box`)
             for x in range(width):
                 for c in range(4):
                     out[row, x, c] = 0.0 + color[y, x, 0, c]
         else:
             for x in range(width):
                 for c in range(4):
-                    total = 0.0
-                    for s in range(n_samples):
-                        total += color[y, x, s, c]
-                    out[row, x, c] = total / n_samples
+                    out[row, x, c] = _sample_mean(color, y, x, c)
