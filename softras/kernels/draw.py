@@ -602,8 +602,9 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, color_f
     per fragment (Phong) or alpha-tested, keeping the lanes with a passed
     sample; a draw without depth test or alpha test keeps every lane
     (vectorised); perspective weights and colour bytes (vectorised), the
-    writes (scalar); an alpha-tested draw's alpha test comes first, on
-    weights at every lane.
+    writes (scalar), or into an rgba32f buffer the float colours and their
+    writes (`softras.kernels.rgba32f._float_fragments`); an alpha-tested
+    draw's alpha test comes first, on weights at every lane.
 
     The arrays one by one, not as `Triangles`, `Samples`, `Framebuffer` and
     `LaneBuffers` records: this runs about once per small triangle, and the
