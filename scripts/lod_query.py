@@ -143,9 +143,9 @@ def judge(lam: np.ndarray, r: Ranges) -> dict:
             "sigma1_offset_p1_p50_p99": [float(v) for v in np.percentile(off_sigma1, [1, 50, 99])]}
 
 
-def report(drawing: dict, label: str) -> list[dict]:
+def report(drawing: dict, label: str, scenes_by_name: dict) -> list[dict]:
     rows = []
-    for name, scene in scenes().items():
+    for name, scene in scenes_by_name.items():
         row = judge(drawing[name], ranges(scene))
         rows.append({"scene": name, **row})
         print(f"| {label} | {name} | {row['pixels']} | {row['below']} ({row['worst_below']:.3f}) | "
@@ -159,19 +159,20 @@ def main(argv=None) -> int:
     parser.add_argument("--draw", metavar="FILE", help="only draw this machine's GL lambdas into FILE (.npz)")
     parser.add_argument("--judge", metavar="FILE", help="judge a drawing made elsewhere")
     args = parser.parse_args(argv)
+    scenes_by_name = scenes()
     if args.draw:
-        np.savez_compressed(args.draw, **draw(scenes()))
+        np.savez_compressed(args.draw, **draw(scenes_by_name))
         return 0
     if args.judge:
         with np.load(args.judge) as data:
             drawing, label = {k: data[k] for k in data.files}, args.judge
     else:
         import glref
-        drawing, label = draw(scenes()), glref.info()["GL_RENDERER"].split("(")[0].strip()
+        drawing, label = draw(scenes_by_name), glref.info()["GL_RENDERER"].split("(")[0].strip()
     print("| GL | scene | pixels | below the range (worst) | above it (worst) | above, sigma1 above too | "
           "lambda - log2 sigma1: 1 %, median, 99 % |")
     print("|---|---|---|---|---|---|---|")
-    report(drawing, label)
+    report(drawing, label, scenes_by_name)
     return 0
 
 

@@ -25,6 +25,7 @@ from softras.pipeline import render as stages
 from softras.pipeline import sampling, texture_beyond
 from softras.renderer import render_scene
 from test_fastpath import lit_scene, mapped_scene, random_line_scene, random_scene, stretched_uvs
+from test_rgba32f_path import differing
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
 
@@ -282,7 +283,7 @@ def test_the_compiled_resolve_leaves_the_tent_to_the_stages():
 @pytest.mark.parametrize("samples", [1, 4, 9, 32])
 def test_the_compiled_rgba32f_resolve_gives_the_stages_floats(samples):
     """An rgba32f picture's box filter from the float64 samples
-    (`softras.kernels.rgba32f._resolve_floats`): the stages' float32 means
+    (`softras.kernels.rgba32f.resolve`): the stages' float32 means
     bit for bit (NaN where NaN; -0.0 samples give +0.0, as numpy's mean
     from 0.0 does), infinities, NaN and values far out of [0, 1] among them."""
     rng = np.random.default_rng(samples)
@@ -297,8 +298,7 @@ def test_the_compiled_rgba32f_resolve_gives_the_stages_floats(samples):
     with np.errstate(invalid="ignore", over="ignore"):
         expected = stages.resolve(job, color)
     out = exact.resolve(job, color)
-    nan = np.isnan(expected) & np.isnan(out)
-    assert out.dtype == np.float32 and not ((out.view(np.uint32) != expected.view(np.uint32)) & ~nan).any()
+    assert out.dtype == np.float32 and not differing(expected, out).any()
 
 
 def test_the_reused_framebuffer_is_the_stages_cleared_one():

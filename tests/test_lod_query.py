@@ -26,18 +26,23 @@ lq = load_script("lod_query")
 
 
 @pytest.fixture(scope="module")
-def ranges():
-    return {name: lq.ranges(scene) for name, scene in lq.scenes().items()}
+def scenes():
+    return lq.scenes()
 
 
 @pytest.fixture(scope="module")
-def drawing():
+def ranges(scenes):
+    return {name: lq.ranges(scene) for name, scene in scenes.items()}
+
+
+@pytest.fixture(scope="module")
+def drawing(scenes):
     """This process's GL's lambdas; glref's pictures are its own again after the probe."""
     import glref
 
-    plane = lq.scenes()["bump_mapped_plane"]
+    plane = scenes["bump_mapped_plane"]
     before = glref.render(plane)
-    drawn = lq.draw(lq.scenes())
+    drawn = lq.draw(scenes)
     assert (glref.render(plane) == before).all()
     return drawn
 
@@ -65,12 +70,11 @@ def test_the_recorded_gpu_lambdas(ranges):
 
 
 @pytest.mark.gl
-def test_the_check_can_fail(drawing, monkeypatch):
+def test_the_check_can_fail(scenes, drawing, monkeypatch):
     """Planted: lambda_range without the piecewise-linear log2's error (the
     lower end 0.086 too high): llvmpipe's lambdas fall below it."""
     original = texture_bounds.lambda_range
     exact_log2 = dataclasses.replace(texture_bounds.LOD, log2_error=0.0)
     monkeypatch.setattr(texture_bounds, "lambda_range", lambda c, size, lod=None: original(c, size, exact_log2))
-    scene = lq.scenes()["bump_mapped_8k_512"]
-    row = lq.judge(drawing["bump_mapped_8k_512"], lq.ranges(scene))
+    row = lq.judge(drawing["bump_mapped_8k_512"], lq.ranges(scenes["bump_mapped_8k_512"]))
     assert row["below"] > 1000

@@ -230,12 +230,14 @@ def test_the_exact_preparation_reaches_every_exact_kernel(tmp_path):
     kernel of softras.kernels that exact precision calls, and the clipper's:
     rendering the scene files and random lit, textured, blended scenes at 1
     and 4 samples afterwards adds no compiled specialisation to any of their
-    dispatchers (`new_specialisations`).  (The draws exact precision leaves
-    to the stages compile the stages' own kernels, seconds, as the stages
-    do.)"""
-    before, after = new_specialisations(tmp_path, ["exact", "exact_lines", "interpolate", "light", "setup"], ["clip"],
-                                        "prepare.prepare(prepare.EXACT)",
-                                        [{"precision": "exact", "samples": samples} for samples in (None, 4)])
+    dispatchers (`new_specialisations`), into an rgba32f framebuffer too
+    (its box resolve from float64 samples).  (The draws exact precision
+    leaves to the stages compile the stages' own kernels, seconds, as the
+    stages do.)"""
+    before, after = new_specialisations(tmp_path, ["exact", "exact_lines", "interpolate", "light", "rgba32f", "setup"],
+                                        ["clip"], "prepare.prepare(prepare.EXACT)",
+                                        [{"precision": "exact", "samples": samples, "framebuffer": framebuffer}
+                                         for samples in (None, 4) for framebuffer in ("rgba8", "rgba32f")])
     for kernel in ("_DRAW", "_setup", "_corners", "_resolve_box"):           # (called from Python)
         assert before[f"softras.kernels.exact.{kernel}"] >= 1, f"the preparation did not compile exact.{kernel}"
     assert before["softras.kernels.exact_lines._DRAW_LINES"] >= 1, "the preparation did not compile exact_lines"

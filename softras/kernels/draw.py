@@ -89,7 +89,7 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
 from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lane, _uses_depth, _write_lanes,
-                                 clear, clear_floats)
+                                 clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_whole_block, _tile_box)
 from softras.kernels.rgba32f import _float_fragments
@@ -270,7 +270,7 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
     bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     cutoff = material.alpha_cutoff
-    rgba32f = fb.color_f is not NO_FLOATS
+    rgba32f = holds_floats(fb)
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
                       bool(material.texture is not None and not flat and not lit and cutoff is None
                            and not rgba32f and plain_colors(base)), flat, lit,
@@ -559,7 +559,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             # (`softras.pipeline.ops.apply_fragments`); an rgba32f buffer's
             # floats after the alpha test (`softras.kernels.rgba32f`).
             if state.rgba32f:
-                pass
+                pass                                  # (`_float_fragments` below)
             elif state.lit:
                 _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, state.texture,
                              state.mapped != NO_MAP)

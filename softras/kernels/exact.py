@@ -36,7 +36,7 @@ the stages' `draw_triangles`, on the same float64 buffers;
   reused from one render to the next and cleared in parallel
   (`reused_framebuffer`, `_clear`);
 - the picture: `softras.pipeline.ops.resolve`'s box filter (`_resolve_box`;
-  an rgba32f picture's float32 means, `softras.kernels.rgba32f._resolve_floats`).
+  an rgba32f picture's float32 means, `softras.kernels.rgba32f.resolve`).
 
 Bands of `BAND_ROWS` rows are drawn in parallel (thread r of n draws bands
 r, r + n, ...); each walks the draw's triangles in order over its own rows,
@@ -61,7 +61,8 @@ from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _
 from softras.kernels.lanes import _LF_LIT, _LF_MAP, _LF_W, _NLF
 from softras.kernels.light import NO_LIGHTING, _phong_colors, base_colors, flat_corner_colors, scene_lighting
 from softras.kernels.ops import _uses_depth
-from softras.kernels.rgba32f import _resolve_floats, _sample_mean
+from softras.kernels import rgba32f
+from softras.kernels.rgba32f import _sample_mean
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
@@ -287,17 +288,14 @@ def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
     """`softras.pipeline.render.resolve` of an exact-precision job's
     per-sample colours (H, W, S, 4) float64: the picture (H, W, 4), row 0 =
     top.  An RGBA8 job's box filter by `_resolve_box` (the same bytes, in
-    parallel, without float buffers), an rgba32f job's by
-    `softras.kernels.rgba32f._resolve_floats` (float32); the tent filter by
-    the stages."""
+    parallel, without float buffers); an rgba32f job's by
+    `softras.kernels.rgba32f.resolve`; the tent filter by the stages."""
     if job.precision != "exact":
         raise ValueError("softras.kernels.exact resolves exact precision only")
+    if not job.rgba8:
+        return rgba32f.resolve(job, color)
     if job.resolve_filter != "box":
         return stages.resolve(job, color)
-    if not job.rgba8:
-        out = np.empty(color.shape[:2] + (4,), np.float32)
-        _resolve_floats(color, out)
-        return out
     out = np.empty(color.shape[:2] + (4,), np.uint8)
     _resolve_box(color, out)
     return out

@@ -37,7 +37,7 @@ import numba
 import numpy as np
 
 from softras.kernels.interpolate import RGBA, _color_word
-from softras.kernels.ops import NO_FLOATS, _depth_k, _depth_pass_k, _write_floats, _write_word
+from softras.kernels.ops import _depth_k, _depth_pass_k, _write_floats, _write_word, holds_floats
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
@@ -83,7 +83,7 @@ def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
     _DRAW_LINES(c, finite, read_only(mesh.indices, np.int64), planes,
                 read_only(vertex_colors(mesh), np.float64), read_only(draw.material.color, np.float64),
                 offsets, np.ascontiguousarray(positions, np.float64), rectangular,
-                lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.color_f, fb.color_f is not NO_FLOATS,
+                lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.color_f, holds_floats(fb),
                 fb.depth, depth_func,
                 bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend], *table,
                 numba.get_num_threads())

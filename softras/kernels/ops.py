@@ -38,6 +38,11 @@ NO_WORDS = np.zeros((1, 1, 1), np.uint32)
 NO_FLOATS = np.zeros((1, 1, 1, 4), np.float32)
 
 
+def holds_floats(fb) -> bool:
+    """Whether the `Framebuffer` fb is an rgba32f one (its colour in color_f)."""
+    return fb.color_f is not NO_FLOATS
+
+
 
 def clear(color, depth, clear_bytes):
     """`softras.pipeline.ops.new_framebuffer` in the compiled path's storage: fill

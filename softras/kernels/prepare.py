@@ -238,10 +238,11 @@ def prepare(variant) -> None:
     `preparation_scene` on the compiled path (a tile driver (driver
     samples, textured): in gl precision, without lines, at 2 samples for
     the driver of any count, and above one sample both box resolves of
-    its samples, `softras.pipeline.render.resolve_bytes`' compiled loops;
-    and an rgba32f framebuffer's box resolve,
-    `softras.kernels.rgba32f._resolve_floats`; EXACT: textured, in exact precision) or LINES `line_preparation_scene`
-    (gl precision), then mark it ready."""
+    its samples, `softras.pipeline.render.resolve_bytes`' compiled loops,
+    and an rgba32f framebuffer's box resolve of float32 samples
+    (`softras.kernels.rgba32f._resolve_floats`); EXACT: textured, in exact
+    precision, and the rgba32f resolve of float64 samples) or LINES
+    `line_preparation_scene` (gl precision), then mark it ready."""
     if ready(variant):
         return
     from softras.kernels import draw, rgba32f
@@ -260,6 +261,7 @@ def prepare(variant) -> None:
                                 framebuffer=None, clipping=None, texture_fixed_point=True, texture_filter=None,
                                 texture_bounds=None, tie_rule="left_bottom")
             exact.resolve(job, exact.render_samples(scene, job, reuse=True))
+            rgba32f._resolve_floats(np.zeros((1, 1, 2, 4)), np.empty((1, 1, 4), np.float32))
         elif variant == LINES:
             # (One sample: MSAA's rectangular lines are the same compiled
             # function, a flag at run time.)

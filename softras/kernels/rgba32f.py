@@ -15,9 +15,12 @@ draw's `softras.kernels.draw.DrawState` says rgba32f.  It is a function of
 its own, not inlined: one compiled copy (Phong's lighting with it) serves
 every tile driver, and the RGBA8 draws pay one branch per block.
 
-`resolve` makes the picture from the float samples: the stages' box
-filter (`softras.pipeline.ops.resolve`, float32 output) in one parallel
-loop (`_resolve_floats`), the tent filter by the stages.
+`resolve` makes the picture from the float samples, gl precision's
+float32 and exact precision's float64 alike (`softras.kernels.exact.resolve`
+hands it its rgba32f jobs): the stages' box filter
+(`softras.pipeline.ops.resolve`, float32 output, the same arithmetic in
+both precisions) in one parallel loop (`_resolve_floats`), the tent filter
+by the stages.
 """
 
 from __future__ import annotations
@@ -87,10 +90,11 @@ _float_fragments = _make_float_fragments(sources_stamp(ops, libm))
 
 def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
     """`softras.pipeline.render.resolve` of an rgba32f job's samples
-    (H, W, S, 4) float32: the picture (H, W, 4) float32, row 0 = top.  The
-    box filter by `_resolve_floats`, the tent filter by the stages."""
-    if job.rgba8 or job.precision != "gl":
-        raise ValueError("softras.kernels.rgba32f resolves a gl-precision rgba32f job only")
+    (H, W, S, 4), float32 in gl precision, float64 in exact: the picture
+    (H, W, 4) float32, row 0 = top.  The box filter by `_resolve_floats`,
+    the tent filter by the stages."""
+    if job.rgba8:
+        raise ValueError("softras.kernels.rgba32f resolves an rgba32f job only")
     if job.resolve_filter != "box":
         return stages.resolve(job, color)
     out = np.empty(color.shape[:2] + (4,), np.float32)

@@ -386,10 +386,12 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
     if mapped:
         # Lighting is not monotone in a map's level of detail: more lambdas
         # than the range's ends (`softras.pipeline.texture_bounds.MAP_LODS`).
-        for side in ("lo", "hi"):
-            for where in ("middle", "first_level", "last_level"):
-                variants.append((f"texture bounds {side}/{where} (gl)", scene,
-                                 {"precision": "gl", "texture_bounds": f"{side}/{where}"}))
+        from softras.pipeline import texture_bounds as texbounds
+
+        for value in texbounds.BOUND_RENDERS:
+            if value not in texbounds.SIDES:       # ("lo" and "hi" above)
+                variants.append((f"texture bounds {value} (gl)", scene,
+                                 {"precision": "gl", "texture_bounds": value}))
     pattern = gl_positions(scene, caps)
     lo = hi = None
     pictures = {}
