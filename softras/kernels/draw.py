@@ -91,7 +91,7 @@ from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_c
 from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lane, _uses_depth, _write_lanes,
                                  clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
-                                       _list_whole_block, _tile_box)
+                                       _list_row, _list_whole_block, _tile_box)
 from softras.kernels.rgba32f import _float_fragments
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
@@ -389,9 +389,12 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     triangle the 8x8 blocks of its bounding box inside the tile with the
     exact early-out / early-in corner test of
     `softras.pipeline.rasterize._raster_triangle`
-    (`softras.kernels.rasterize._block_test`); the covered pixels listed as
-    lanes and shaded (`_flat_block`) from LANES of them on and after the
-    triangle's last block.  The per-pixel arithmetic is
+    (`softras.kernels.rasterize._block_test`), or at one sample a pixel the
+    box's rows, each row's run of covered pixels
+    (`softras.kernels.rasterize._list_row`); the covered pixels listed as
+    lanes and shaded (`_flat_block`) from LANES of them on (a row adds at
+    most TILE, so the lanes never exceed 2 * LANES) and after the
+    triangle's last block or row.  The per-pixel arithmetic is
     `softras.pipeline.render.draw_triangles`'s, operation for operation.
 
     Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the thread's
@@ -412,14 +415,21 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
         t = bin_tri[j]
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
-        # The blocks k = 0 .. n_blocks - 1 row by row, and k = n_blocks to
-        # shade what is left: one call site of `_flat_block`, which numba
-        # inlines (each inlined copy costs seconds of compile time).
+        # The blocks k = 0 .. n_blocks - 1 row by row (at one sample the
+        # box's pixel rows instead, `_list_row`), and k = n_blocks to shade
+        # what is left: one call site of `_flat_block`, which numba inlines
+        # (each inlined copy costs seconds of compile time).
         blocks_x = max((x_end - x_start) // BLOCK + 1, 0)
         n_blocks = blocks_x * max((y_end - y_start) // BLOCK + 1, 0)
+        if n_samples == 1:
+            n_blocks = max(y_end - y_start + 1, 0) if x_end >= x_start else 0
         n_flat = 0                              # lanes listed, shaded from LANES on
         for k in range(n_blocks + 1):
-            if k < n_blocks:
+            if k < n_blocks and n_samples == 1:
+                n_flat = _list_row(n_flat, x_start, x_end, y_start + k, edges, offsets, li)
+                if n_flat < LANES:
+                    continue
+            elif k < n_blocks:
                 by = y_start + (k // blocks_x) * BLOCK
                 bx = x_start + (k % blocks_x) * BLOCK
                 by1 = min(by + BLOCK - 1, y_end)

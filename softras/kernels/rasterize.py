@@ -5,7 +5,9 @@ edge functions ``E_i = A_i (X - X0_i) + B_i (Y - Y0_i)`` of
 `softras.pipeline.setup.edge_equations` with the fill rule, tested per sample,
 and the same exact early-out / early-in test per 8x8 block (E is linear: its
 extremes over a block are at the block's corner samples).  The tile kernels
-(`softras.kernels.draw._flat_tile`, `_textured_tile`) walk the blocks; nothing here materialises a
+(`softras.kernels.draw._flat_tile`, `_textured_tile`) walk the blocks, or,
+untextured at one sample a pixel, the rows, each row's covered pixels
+found by exact integer division (`_list_row`); nothing here materialises a
 fragment list.
 
 Binning (`_bin`) has no readable counterpart: the visible triangles are
@@ -180,6 +182,45 @@ def _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_s
             if quad_mask:
                 n += 4
     return n
+
+
+@numba.njit(cache=True, inline="always")
+def _span(r, step, lo, hi):
+    """Pixels lo..hi of a row narrowed to those i where one edge's
+    ``r + step i >= 0`` (r: `_edge_at` at pixel 0's sample, step: the edge's
+    a * 256 per pixel; integers): the i of `_inside3`'s test of this edge,
+    without testing each.  Floor division, exact: for step > 0 the first i
+    is ceil(-r / step) = -(r // step), for step < 0 the last is
+    floor(r / -step); a zero step keeps the row or empties it."""
+    if step > 0:
+        lo = max(lo, -(r // step))
+    elif step < 0:
+        hi = min(hi, r // (-step))
+    elif r < 0:
+        hi = lo - 1
+    return lo, hi
+
+
+@numba.njit(cache=True, inline="always")
+def _list_row(n, x0, x1, py, edges, offsets, li):
+    """At one sample a pixel (offsets (1, 2)): the fragments of
+    `softras.pipeline.rasterize._raster_triangle` in pixels x0..x1 of row py,
+    appended as lanes from lane n on (coverage mask 1).  A triangle covers
+    one run of a row's pixels (the three edges' half-planes are convex), so
+    the run's ends come from each edge's `_span` and the pixels between are
+    written in a loop LLVM vectorises: per row three divisions instead of
+    an 8x8 block test and a branch-free test of every pixel of the block's
+    rows (`_list_pixels`).  The same pixels, in row order rather than block
+    by block.  Returns the new number of lanes (at most n + x1 - x0 + 1)."""
+    sx, sy = x0 * 256 + offsets[0, 0], py * 256 + offsets[0, 1]
+    lo, hi = _span(_edge_at(edges.e0, sx, sy), edges.e0.a * 256, 0, x1 - x0)
+    lo, hi = _span(_edge_at(edges.e1, sx, sy), edges.e1.a * 256, lo, hi)
+    lo, hi = _span(_edge_at(edges.e2, sx, sy), edges.e2.a * 256, lo, hi)
+    for i in range(lo, hi + 1):
+        li[_LI_PX, n + i - lo] = x0 + i
+        li[_LI_PY, n + i - lo] = py
+        li[_LI_COV, n + i - lo] = 1
+    return n + max(hi - lo + 1, 0)
 
 
 @numba.njit(cache=True, inline="always")
