@@ -73,19 +73,12 @@ import os
 from collections import namedtuple
 
 # numba's default OpenMP threading layer leaves its threads spinning after a
-# parallel region (libgomp: 300,000 turns, Intel's and LLVM's runtimes: 200
-# ms); on a loaded 2-core machine they steal the core that llvmpipe's
-# threads (glref, same process) and other processes need: the 24k grid took
-# 24 ms with 2 spinning threads against 12 ms with 1 (docs/speed.md).  Not
-# waiting at all (OMP_WAIT_POLICY=passive, until the thirtieth round) makes
-# every parallel kernel wake a sleeping thread: ~60 us a launch against
-# 1.6 us, and a scene launches the tile driver once per draw.  So libgomp
-# spins 10,000 turns (0.2-0.3 ms here: longer than the Python of a draw
-# between two launches, ~0.1 ms) and then sleeps; the other runtimes sleep
-# at once, as passive had them.  Read when numba first starts its threads;
-# an explicit setting wins (GOMP_SPINCOUNT even over OMP_WAIT_POLICY).
-os.environ.setdefault("GOMP_SPINCOUNT", "10000")
-os.environ.setdefault("KMP_BLOCKTIME", "0")
+# parallel region; on a loaded 2-core machine they steal the core that
+# llvmpipe's threads (glref, same process) and other processes need: the 24k
+# grid took 24 ms with 2 spinning threads against 12 ms with 1 (docs/speed.md).
+# Passive waiting (read by libgomp when numba first starts its threads) keeps
+# the second thread's gain on a quiet machine.  An explicit setting wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 import numba  # noqa: E402  (after the environment default above)
 import numpy as np
