@@ -1,6 +1,7 @@
-"""The compiled path's row runs (`softras.kernels.rasterize._list_row`): at one
+"""The compiled path's row runs (`softras.kernels.rasterize._row_run`): at one
 sample a pixel an untextured tile lists each row's covered pixels from three
-integer divisions instead of testing every pixel.  The pixels must be
+integer divisions instead of testing every pixel (`_list_row`), and a
+textured tile's partly covered block its quads' pixels (`_list_quads`).  The pixels must be
 exactly those of the per-sample test (`_inside3`, the test of
 `softras.pipeline.rasterize._raster_triangle`), samples on an edge included:
 a division rounded the wrong way loses or gains only such pixels, which the
@@ -11,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from softras.kernels.lanes import _LI_COV, _LI_PX, _LI_PY, _LI_Z, LANES
-from softras.kernels.rasterize import Edge, Edges, _list_row
+from softras.kernels.lanes import _LF_CX, _LF_CY, _LI_COV, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES
+from softras.kernels.rasterize import Edge, Edges, _list_quads, _list_row
 
 
 def _covered(edges, offsets, x0, x1, py):
@@ -35,6 +36,23 @@ def _listed(edges, offsets, x0, x1, py, n=0):
     assert (li[:, :n] == -7).all()                  # lanes before n untouched
     assert (li[_LI_PY, n:end] == py).all() and (li[_LI_COV, n:end] == 1).all()
     return li[_LI_PX, n:end].tolist()
+
+
+def _quads(edges, offsets, bx, bx1, by, by1):
+    """The quads `_list_quads` should list for pixels bx..bx1 x by..by1 of a
+    block: every 2x2 quad (from even pixels) with a covered pixel, its four
+    lanes' (px, py, mask), a pixel outside the block's part masked 0."""
+    out = []
+    for qy in range(by & -2, by1 + 1, 2):
+        for qx in range(bx & -2, bx1 + 1, 2):
+            lanes = []
+            for k in range(4):
+                px, py = qx + (k & 1), qy + (k >> 1)
+                inside = bx <= px <= bx1 and by <= py <= by1 and px in _covered(edges, offsets, px, px, py)
+                lanes.append((px, py, int(inside)))
+            if any(mask for _, _, mask in lanes):
+                out.extend(lanes)
+    return out
 
 
 def _edge_through(rng, sx, sy, target):
@@ -73,6 +91,26 @@ def test_a_row_run_is_the_per_sample_test(seed):
         on_edge += any(e.a * (px * 256 + int(offsets[0, 0]) - e.x0) + e.b * (sy - e.y0) - e.bias == 0
                        for e in edges for px in range(x0, x1 + 1))
     assert checked == 400 and on_edge > 100       # the runs' ends on a sample, often
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_blocks_quads_at_one_sample_are_the_per_sample_test(seed):
+    rng = np.random.default_rng(100 + seed)
+    for _ in range(300):
+        offsets = rng.integers(0, 256, size=(1, 2)).astype(np.int64)
+        bx, by = 2 * int(rng.integers(-20, 100)), 2 * int(rng.integers(-20, 100))
+        bx0, by0 = bx + int(rng.integers(0, 2)), by + int(rng.integers(0, 2))     # (a box edge inside the block)
+        bx1, by1 = bx + int(rng.integers(0, 8)), by + int(rng.integers(0, 8))
+        bx0, by0 = min(bx0, bx1), min(by0, by1)
+        sy = by0 * 256 + int(offsets[0, 1])
+        edges = Edges(*(_edge_through(rng, int(rng.integers(bx0 - 2, bx1 + 3)) * 256 + int(offsets[0, 0]),
+                                      sy + 256 * int(rng.integers(0, by1 - by0 + 1)), int(rng.integers(-1, 2)))
+                        for _ in range(3)))
+        lf, li = np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + 1, 2 * LANES), np.int64)
+        n = _list_quads(bx0, bx1, by0, by1, False, edges, offsets, 1, lf, li, 1)
+        got = list(zip(li[_LI_PX, :n].tolist(), li[_LI_PY, :n].tolist(), li[_LI_COV, :n].tolist()))
+        assert got == _quads(edges, offsets, bx0, bx1, by0, by1), (edges, bx0, bx1, by0, by1)
+        assert (lf[_LF_CX, :n] == li[_LI_PX, :n] + 0.5).all() and (lf[_LF_CY, :n] == li[_LI_PY, :n] + 0.5).all()
 
 
 def test_a_right_edge_through_a_sample_keeps_or_drops_it_by_its_bias():
