@@ -415,21 +415,22 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
         t = bin_tri[j]
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
-        # The blocks k = 0 .. n_blocks - 1 row by row (at one sample the
-        # box's pixel rows instead, `_list_row`), and k = n_blocks to shade
-        # what is left: one call site of `_flat_block`, which numba inlines
-        # (each inlined copy costs seconds of compile time).
+        # The units k = 0 .. n_units - 1: at one sample the box's pixel rows
+        # (`_list_row`), else its 8x8 blocks row by row; and k = n_units to
+        # shade what is left: one call site of `_flat_block`, which numba
+        # inlines (each inlined copy costs seconds of compile time).
         blocks_x = max((x_end - x_start) // BLOCK + 1, 0)
-        n_blocks = blocks_x * max((y_end - y_start) // BLOCK + 1, 0)
         if n_samples == 1:
-            n_blocks = max(y_end - y_start + 1, 0) if x_end >= x_start else 0
+            n_units = max(y_end - y_start + 1, 0) if x_end >= x_start else 0
+        else:
+            n_units = blocks_x * max((y_end - y_start) // BLOCK + 1, 0)
         n_flat = 0                              # lanes listed, shaded from LANES on
-        for k in range(n_blocks + 1):
-            if k < n_blocks and n_samples == 1:
+        for k in range(n_units + 1):
+            if k < n_units and n_samples == 1:
                 n_flat = _list_row(n_flat, x_start, x_end, y_start + k, edges, offsets, li)
                 if n_flat < LANES:
                     continue
-            elif k < n_blocks:
+            elif k < n_units:
                 by = y_start + (k // blocks_x) * BLOCK
                 bx = x_start + (k % blocks_x) * BLOCK
                 by1 = min(by + BLOCK - 1, y_end)

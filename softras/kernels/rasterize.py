@@ -6,9 +6,10 @@ edge functions ``E_i = A_i (X - X0_i) + B_i (Y - Y0_i)`` of
 and the same exact early-out / early-in test per 8x8 block (E is linear: its
 extremes over a block are at the block's corner samples).  The tile kernels
 (`softras.kernels.draw._flat_tile`, `_textured_tile`) walk the blocks, or,
-untextured at one sample a pixel, the rows, each row's covered pixels
-found by exact integer division (`_list_row`); nothing here materialises a
-fragment list.
+untextured at one sample a pixel, the rows; at one sample a row's covered
+pixels are found by exact integer division (`_row_run`: `_list_row` lists
+them, `_list_quads` masks a partly covered block's quads with them);
+nothing here materialises a fragment list.
 
 Binning (`_bin`) has no readable counterpart: the visible triangles are
 listed, in draw order, in every TILE x TILE tile their bounding box touches,
@@ -162,34 +163,21 @@ def _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_s
     every pixel: textured_phong_8k_1024 3-4 % faster on one thread.
     Returns the number of lanes."""
     n = 0
-    if n_samples == 1 and not all_in:       # (the rows' runs: `_row_run`, two a quad row)
-        for qy in range(by & -2, by1 + 1, 2):
+    runs = n_samples == 1 and not all_in
+    for qy in range(by & -2, by1 + 1, 2):
+        lo0 = hi0 = lo1 = hi1 = 0
+        if runs:                        # (the quad row's two rows, empty outside the block)
             lo0, hi0 = _row_run(bx, bx1, qy, edges, offsets) if qy >= by else (1, 0)
             lo1, hi1 = _row_run(bx, bx1, qy + 1, edges, offsets) if qy + 1 <= by1 else (1, 0)
-            for qx in range(bx & -2, bx1 + 1, 2):
-                quad_mask = 0
-                for k in range(4):
-                    px = qx + (k & 1)
-                    py = qy + (k >> 1)
-                    lo, hi = (lo0, hi0) if k < 2 else (lo1, hi1)
-                    mask = np.int64(lo <= px - bx <= hi)
-                    li[_LI_PX, n + k] = px
-                    li[_LI_PY, n + k] = py
-                    li[_LI_COV, n + k] = mask
-                    lf[_LF_CX, n + k] = px + 0.5
-                    lf[_LF_CY, n + k] = py + 0.5
-                    quad_mask |= mask
-                if quad_mask:
-                    n += 4
-        return n
-    for qy in range(by & -2, by1 + 1, 2):
         for qx in range(bx & -2, bx1 + 1, 2):
             quad_mask = 0
             for k in range(4):
                 px = qx + (k & 1)
                 py = qy + (k >> 1)
                 mask = 0
-                if bx <= px <= bx1 and by <= py <= by1:
+                if runs:
+                    mask = np.int64((lo0 <= px - bx <= hi0) if k < 2 else (lo1 <= px - bx <= hi1))
+                elif bx <= px <= bx1 and by <= py <= by1:
                     mask = full_mask
                     if not all_in:
                         mask = 0
