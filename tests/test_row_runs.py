@@ -1,8 +1,9 @@
 """The compiled path's row runs (`softras.kernels.rasterize._row_run`): at one
 sample a pixel an untextured tile lists each row's covered pixels from three
 integer divisions instead of testing every pixel (`_list_row`), and a
-textured tile's partly covered block its quads' pixels (`_list_quads`).  The pixels must be
-exactly those of the per-sample test (`_inside3`, the test of
+textured tile masks a partly covered block's quads with them
+(`_list_quads`).  The pixels must be exactly those of the per-sample test
+(`_inside3`, the test of
 `softras.pipeline.rasterize._raster_triangle`), samples on an edge included:
 a division rounded the wrong way loses or gains only such pixels, which the
 scenes rarely have, so here they are made on purpose."""
