@@ -259,7 +259,7 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
     render of such a scene.  A draw of a few triangles is set up by
     `_setup_range` alone, and an MSAA picture is resolved by
     `_resolve_bytes` (GL's patterns) or `_resolve_exact` (any other), an
-    rgba32f one by `softras.kernels.rgba32f._resolve_floats`: the
+    rgba32f one by `softras.kernels.ops._resolve_box`: the
     preparation reaches them too."""
     before, after = new_specialisations(
         tmp_path, ["draw", "light", "lines", "maps", "rgba32f", "setup", "texture", "texture_beyond"],
@@ -274,7 +274,7 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
     assert before["softras.kernels.lines._DRAW_LINES"] == 1, "the preparation did not compile the line kernel"
     assert before["softras.pipeline.clip.triangle_list_gl"] == 1
     assert before["softras.pipeline.ops._resolve_bytes"] == 1, "the preparation did not compile the MSAA resolve"
-    assert before["softras.kernels.rgba32f._resolve_floats"] == 1, "the preparation missed the rgba32f resolve"
+    assert before["softras.kernels.rgba32f._resolve_box"] == 1, "the preparation missed the rgba32f resolve"
     assert {name: n for name, n in after.items() if n != before[name]} == {}
 
 

@@ -23,7 +23,7 @@ import pytest
 
 import softras
 from softras.kernels import draw as fastpath
-from softras.kernels import rgba32f
+from softras.kernels import ops as kernel_ops
 from softras.pipeline import ops, render as stages
 from softras.pipeline import texture_beyond
 from softras.renderer import render_scene
@@ -151,14 +151,14 @@ def special_floats(shape, seed: int) -> np.ndarray:
 
 @pytest.mark.parametrize("samples", [1, 2, 4, 8, 16, 32, 49])
 def test_float_resolve_equals_the_stages_resolve(samples):
-    """`rgba32f._resolve_floats` gives `softras.pipeline.ops.resolve`'s
+    """`softras.kernels.ops._resolve_box` gives `softras.pipeline.ops.resolve`'s
     float32 box filter bit for bit (the sample means in float64, from 0.0 in
     sample order, so -0.0 samples give +0.0; NaN where NaN), rows flipped."""
     color = special_floats((13, 11, samples, 4), samples)
     with np.errstate(invalid="ignore"):                 # (inf - inf in the stages' sums)
         expected = ops.resolve(color, filter="box", arithmetic="llvmpipe", output="float32")
     out = np.empty((13, 11, 4), np.float32)
-    rgba32f._resolve_floats(color, out)
+    kernel_ops._resolve_box(color, out)
     assert not differing(expected, out).any()
 
 

@@ -35,8 +35,9 @@ the stages' `draw_triangles`, on the same float64 buffers;
 - the buffers: `softras.pipeline.render.new_pass_framebuffer`'s values,
   reused from one render to the next and cleared in parallel
   (`reused_framebuffer`, `_clear`);
-- the picture: `softras.pipeline.ops.resolve`'s box filter (`_resolve_box`;
-  an rgba32f picture's float32 means, `softras.kernels.rgba32f.resolve`).
+- the picture: `softras.pipeline.ops.resolve`'s box filter
+  (`softras.kernels.ops._resolve_box`, an RGBA8 picture's bytes or an
+  rgba32f picture's floats, `softras.kernels.rgba32f.resolve`).
 
 Bands of `BAND_ROWS` rows are drawn in parallel (thread r of n draws bands
 r, r + n, ...); each walks the draw's triangles in order over its own rows,
@@ -60,9 +61,8 @@ from softras.kernels import exact_lines
 from softras.kernels.interpolate import Corners, _barycentric, _corner_colors, _mix, _triple, _weights_at
 from softras.kernels.lanes import _LF_LIT, _LF_MAP, _LF_W, _NLF
 from softras.kernels.light import NO_LIGHTING, _phong_colors, base_colors, flat_corner_colors, scene_lighting
-from softras.kernels.ops import _uses_depth
+from softras.kernels.ops import _resolve_box, _uses_depth
 from softras.kernels import rgba32f
-from softras.kernels.rgba32f import _sample_mean
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes
 from softras.kernels.stamp import sources_stamp
@@ -287,8 +287,8 @@ def _setup(clip, width, height, cull, front_ccw, box, unit, tie_rule, triangle, 
 def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
     """`softras.pipeline.render.resolve` of an exact-precision job's
     per-sample colours (H, W, S, 4) float64: the picture (H, W, 4), row 0 =
-    top.  An RGBA8 job's box filter by `_resolve_box` (the same bytes, in
-    parallel, without float buffers); an rgba32f job's by
+    top.  An RGBA8 job's box filter by `softras.kernels.ops._resolve_box`
+    (the same bytes, in parallel, without float buffers); an rgba32f job's by
     `softras.kernels.rgba32f.resolve`; the tent filter by the stages."""
     if job.precision != "exact":
         raise ValueError("softras.kernels.exact resolves exact precision only")
@@ -299,44 +299,6 @@ def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
     out = np.empty(color.shape[:2] + (4,), np.uint8)
     _resolve_box(color, out)
     return out
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _unorm8_byte(v):
-    """`softras.pipeline.ops.unorm8_bytes` of one float: ``rint(clamp(v, 0,
-    1) * 255)``, NaN giving 0 as numpy's conversion gives it (a select, no
-    branch)."""
-    byte = np.uint8(np.rint(min(max(v, 0.0), 1.0) * 255.0))
-    return np.uint8(0) if v != v else byte
-
-
-def _make_resolve_box(sources: str):
-    """The kernel `_resolve_box`, cached under the key ``sources`` (it
-    inlines `softras.kernels.rgba32f._sample_mean`)."""
-
-    @numba.njit(cache=True, parallel=True, error_model="numpy")
-    def _resolve_box(color, out):
-        """`softras.pipeline.ops.resolve` (box filter, exact arithmetic,
-        uint8 output): out[H - 1 - y, x] = `_unorm8_byte` of the mean of
-        color[y, x]'s samples (`softras.kernels.rgba32f._sample_mean`).
-        color (H, W, S, 4) float64, out (H, W, 4) uint8.  One sample is its
-        own mean (a division by 1 is exact): it is converted without the
-        mean's loop over the samples (the 512^2 resolve 1.36 -> 0.67 ms on
-        one thread)."""
-        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
-        height, width, n_samples = color.shape[0], color.shape[1], color.shape[2]
-        for y in numba.prange(height):
-            row = height - 1 - y
-            if n_samples == 1:          # (a select inside one loop: the 512^2 resolve 0.59 -> 0.87 ms)
-                for x in range(width):
-                    for c in range(4):
-                        out[row, x, c] = _unorm8_byte(color[y, x, 0, c])
-            else:
-                for x in range(width):
-                    for c in range(4):
-                        out[row, x, c] = _unorm8_byte(_sample_mean(color, y, x, c))
-
-    return _resolve_box
 
 
 def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.ndarray) -> None:
@@ -799,4 +761,3 @@ _TEXELS = _make_texels(_SOURCES)
 _MAP_TEXELS = _make_map_texels(_SOURCES)
 _scratch = _Scratch()
 _DRAW = _make_draw(_SOURCES)
-_resolve_box = _make_resolve_box(_SOURCES)

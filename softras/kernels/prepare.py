@@ -240,12 +240,13 @@ def prepare(variant) -> None:
     the driver of any count, and above one sample both box resolves of
     its samples, `softras.pipeline.render.resolve_bytes`' compiled loops,
     and an rgba32f framebuffer's box resolve of float32 samples
-    (`softras.kernels.rgba32f._resolve_floats`); EXACT: textured, in exact
+    (`softras.kernels.ops._resolve_box`); EXACT: textured, in exact
     precision, and the rgba32f resolve of float64 samples) or LINES
     `line_preparation_scene` (gl precision), then mark it ready."""
     if ready(variant):
         return
-    from softras.kernels import draw, rgba32f
+    from softras.kernels import draw
+    from softras.kernels import ops as kernel_ops
     from softras.pipeline import ops, sampling
     from softras.scene import load_scene
 
@@ -261,7 +262,7 @@ def prepare(variant) -> None:
                                 framebuffer=None, clipping=None, texture_fixed_point=True, texture_filter=None,
                                 texture_bounds=None, tie_rule="left_bottom")
             exact.resolve(job, exact.render_samples(scene, job, reuse=True))
-            rgba32f._resolve_floats(np.zeros((1, 1, 2, 4)), np.empty((1, 1, 4), np.float32))
+            kernel_ops._resolve_box(np.zeros((1, 1, 2, 4)), np.empty((1, 1, 4), np.float32))
         elif variant == LINES:
             # (One sample: MSAA's rectangular lines are the same compiled
             # function, a flag at run time.)
@@ -278,7 +279,7 @@ def prepare(variant) -> None:
                 ops.resolve_exact_bytes(stored)
             # An rgba32f framebuffer's box resolve (its colours and writes
             # are the driver's own, `softras.kernels.rgba32f._float_fragments`).
-            rgba32f._resolve_floats(np.zeros((1, 1, 2, 4), np.float32), np.empty((1, 1, 4), np.float32))
+            kernel_ops._resolve_box(np.zeros((1, 1, 2, 4), np.float32), np.empty((1, 1, 4), np.float32))
         _mark(variant).touch()
 
 

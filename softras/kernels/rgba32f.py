@@ -19,8 +19,8 @@ every tile driver, and the RGBA8 draws pay one branch per block.
 float32 and exact precision's float64 alike (`softras.kernels.exact.resolve`
 hands it its rgba32f jobs): the stages' box filter
 (`softras.pipeline.ops.resolve`, float32 output, the same arithmetic in
-both precisions) in one parallel loop (`_resolve_floats`), the tent filter
-by the stages.
+both precisions) in one parallel loop (`softras.kernels.ops._resolve_box`,
+exact precision's RGBA8 pictures' too), the tent filter by the stages.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 from softras.kernels.interpolate import _mix
 from softras.kernels.lanes import _LF_LIT, _LF_TEX, _LF_W, _LI_PASS, _LI_PX, _LI_PY
 from softras.kernels.light import _phong_colors
-from softras.kernels.ops import _write_floats
+from softras.kernels.ops import _resolve_box, _write_floats
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import libm, ops
 from softras.pipeline import render as stages
@@ -91,45 +91,12 @@ _float_fragments = _make_float_fragments(sources_stamp(ops, libm))
 def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
     """`softras.pipeline.render.resolve` of an rgba32f job's samples
     (H, W, S, 4), float32 in gl precision, float64 in exact: the picture
-    (H, W, 4) float32, row 0 = top.  The box filter by `_resolve_floats`,
-    the tent filter by the stages."""
+    (H, W, 4) float32, row 0 = top.  The box filter by
+    `softras.kernels.ops._resolve_box`, the tent filter by the stages."""
     if job.rgba8:
         raise ValueError("softras.kernels.rgba32f resolves an rgba32f job only")
     if job.resolve_filter != "box":
         return stages.resolve(job, color)
     out = np.empty(color.shape[:2] + (4,), np.float32)
-    _resolve_floats(color, out)
+    _resolve_box(color, out)
     return out
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _sample_mean(color, y, x, c):
-    """``color[y, x, :, c]``'s mean as `softras.pipeline.ops.resolve`'s box
-    filter takes it, numpy's ``mean(axis=2, dtype=float64)``: from 0.0, the
-    samples added in order, then divided by their count (so -0.0 samples
-    give +0.0).  Also exact precision's (`softras.kernels.exact._resolve_box`)."""
-    total = 0.0
-    for s in range(color.shape[2]):
-        total += color[y, x, s, c]
-    return total / color.shape[2]
-
-
-@numba.njit(cache=True, parallel=True, error_model="numpy")
-def _resolve_floats(color, out):
-    """`softras.pipeline.ops.resolve`'s box filter with float32 output:
-    out[H - 1 - y, x, c] = `_sample_mean` of color[y, x, :, c] rounded to
-    float32.  color (H, W, S, 4) float32 (gl precision) or float64 (exact
-    precision, `softras.kernels.exact.resolve`), out (H, W, 4) float32.  One
-    sample is its own mean (a division by 1 is exact): that row is ``0.0 +
-    sample``, without the loop over the samples."""
-    height, width, n_samples = color.shape[0], color.shape[1], color.shape[2]
-    for y in numba.prange(height):
-        row = height - 1 - y
-        if n_samples == 1:              # (two loops, as `softras.kernels.exact._resolve_box`)
-            for x in range(width):
-                for c in range(4):
-                    out[row, x, c] = 0.0 + color[y, x, 0, c]
-        else:
-            for x in range(width):
-                for c in range(4):
-                    out[row, x, c] = _sample_mean(color, y, x, c)

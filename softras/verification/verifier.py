@@ -361,6 +361,7 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
     mapped = any(getattr(d.material, "normal_map", None) or getattr(d.material, "bump_map", None)
                  for d in scene.draws)
     textured = mapped or any(d.material.texture is not None for d in scene.draws)
+    from softras.pipeline import texture_bounds as texbounds
     from softras.verification.ambiguity import shifted_scene
 
     variants: list[tuple[str, object, dict]] = [
@@ -380,16 +381,14 @@ def spec_bounds(scene, capabilities: dict | None = None, *,
             variants.append((f"lines moved ({dx:+d}, {dy:+d}) px", _lines_moved(scene, dx, dy), {"precision": "gl"}))
     if textured:
         for precision in ("gl", "exact"):
-            for side in ("lo", "hi"):
+            for side in texbounds.SIDES:
                 variants.append((f"texture bounds {side} ({precision})", scene,
                                  {"precision": precision, "texture_bounds": side}))
     if mapped:
         # Lighting is not monotone in a map's level of detail: more lambdas
         # than the range's ends (`softras.pipeline.texture_bounds.MAP_LODS`).
-        from softras.pipeline import texture_bounds as texbounds
-
         for value in texbounds.BOUND_RENDERS:
-            if value not in texbounds.SIDES:       # ("lo" and "hi" above)
+            if value not in texbounds.SIDES:       # (the ends, above)
                 variants.append((f"texture bounds {value} (gl)", scene,
                                  {"precision": "gl", "texture_bounds": value}))
     pattern = gl_positions(scene, caps)
