@@ -88,8 +88,8 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI
                                    LaneBuffers)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
-from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lane, _uses_depth, _write_lanes,
-                                 clear, clear_floats, holds_floats)
+from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lane, _depth_test_lanes, _uses_depth,
+                                 _write_lanes, clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _tile_box)
 from softras.kernels.rgba32f import _float_fragments
@@ -409,6 +409,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     bin_start, bin_tri = bins.start, bins.tri
     tri_f, tri_i, bbox, colors, uv, lit = tris.f, tris.i, tris.bbox, tris.colors, tris.uv, tris.lit
     color32, depth, color_f = fb.color32, fb.depth, fb.color_f
+    depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
     full_mask = (1 << n_samples) - 1
     box = _sample_box(offsets)
     for j in range(bin_start[tile], bin_start[tile + 1]):
@@ -445,8 +446,8 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
                     continue
             elif n_flat == 0:
                 break
-            _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, color32, color_f, state, lights,
-                        lighting, lf, li, n_samples)
+            _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, depths, color32, color_f, state,
+                        lights, lighting, lf, li, n_samples)
             n_flat = 0
 
 
@@ -601,14 +602,15 @@ def _textured_tile_called(tile, bins, tris, samples, fb, state, sampler, tex, ma
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, color_f, state, lights, lighting, lf, li,
-                n_samples):
+def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32, color_f, state, lights,
+                lighting, lf, li, n_samples):
     """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
     fragments (`softras.pipeline.fragment.shade_unlit` colours), as
     `softras.pipeline.render.draw_triangles` does them.
     Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
-    depths (vectorised), the depth test (scalar, without branches): unlit,
+    depths (vectorised), the depth test (scalar, without branches;
+    `softras.kernels.ops._depth_test_lanes`): unlit,
     each lane in its place (a failed lane is shaded and not written), lit
     per fragment (Phong) or alpha-tested, keeping the lanes with a passed
     sample; a draw without depth test or alpha test keeps every lane
@@ -620,7 +622,9 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, color_f
     The arrays one by one, not as `Triangles`, `Samples`, `Framebuffer` and
     `LaneBuffers` records: this runs about once per small triangle, and the
     records' arrays taken out here cost reference counts (see `_flat_tile`);
-    state : the `DrawState` (scalars: free)."""
+    depths : the depth buffer seen as one row, ``depth.reshape(-1)``, taken
+    once a tile (`softras.kernels.ops._depth_test_lanes`); state : the
+    `DrawState` (scalars: free)."""
     depth_func, write_z = state.depth_func, state.write_z
     use_depth = _uses_depth(depth_func, write_z)
     if state.alpha_test:                    # (before the depth test: the colour at every lane)
@@ -644,9 +648,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, color32, color_f
         # failed lane is shaded and not written (`_write_lanes` writes passed
         # samples only): the weights and colour bytes are vectorised loops,
         # cheaper than moving the passed lanes to the front one by one.
-        for l in range(n):
-            li[_LI_PASS, l] = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l],
-                                               depth_func, write_z, n_samples)
+        _depth_test_lanes(n, li, depth, depths, depth_func, write_z, n_samples)
         for l in range(n):
             lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
         kept = np.int64(n)

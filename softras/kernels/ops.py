@@ -25,12 +25,13 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from softras.kernels.lanes import _LI_DST, _LI_PASS, _LI_PIX, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
+from softras.kernels.lanes import _LI_COV, _LI_DST, _LI_PASS, _LI_PIX, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _ONE_LANES, _spread, _unspread
 from softras.pipeline import ops as ops_stage
 from softras.pipeline.ops import _blend, blend_byte
 
 DEPTH_SCALE = float((1 << ops_stage.DEPTH_BITS) - 1)
+LESS = ops_stage.DEPTH_FUNCS["less"]                   # (the common depth test: `_depth_test_lanes`)
 
 # The framebuffer the kernels update in place (see the module docstring):
 # color32 the (H, W, S, 4) uint8 colour buffer seen as (H, W, S) RGBA8 words
@@ -96,6 +97,28 @@ def _depth_test_lane(mask, li, l, depth, py, px, depth_func, write_z, n_samples)
         depth[py, px, s] = k if passed & write_z else stored
         p |= np.int64(passed) << s
     return p
+
+
+@numba.njit(cache=True, inline="always")
+def _depth_test_lanes(n, li, depth, depths, depth_func, write_z, n_samples):
+    """`_depth_test_lane` of the n lanes in place: each lane's passed samples
+    from its _LI_COV mask into _LI_PASS.  depths : ``depth.reshape(-1)``.
+    At one sample a "less" test with depth writes, the common case, runs in a
+    copy of its own with the test a constant (no dispatch on the function
+    for each lane) and the pixel's index in depths worked out once."""
+    if n_samples == 1 and depth_func == LESS and write_z:
+        width = depth.shape[1]
+        for l in range(n):
+            i = li[_LI_PY, l] * width + li[_LI_PX, l]
+            k = li[_LI_Z, l]
+            stored = depths[i]
+            passed = (li[_LI_COV, l] & 1 != 0) & _depth_pass_k(LESS, k, stored)
+            depths[i] = k if passed else stored
+            li[_LI_PASS, l] = passed
+        return
+    for l in range(n):
+        li[_LI_PASS, l] = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func,
+                                           write_z, n_samples)
 
 
 @numba.njit(cache=True, inline="always")
