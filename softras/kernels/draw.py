@@ -535,13 +535,17 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             else:
                 any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
             # Depth test (scalar); a quad without a passed sample samples level 0 alone.
+            # A helper lane (mask 0) is not tested: at the right or bottom edge
+            # of a picture of odd size it lies outside the picture, and its
+            # depth would be read (and written back) one pixel past a row,
+            # in another thread's tile, or past the buffer's end.
             block_passed = 0
             block_two = False                             # a passed quad samples two levels
             for q in range(n >> 2):
                 quad_passed = 0
                 for l in range(4 * q, 4 * q + 4):
                     p = li[_LI_COV, l]
-                    if use_depth and not state.alpha_test:      # (alpha test: after the texels, below)
+                    if use_depth and not state.alpha_test and p != 0:   # (alpha test: after the texels, below)
                         p = _depth_test_lane(p, li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
                                              count)
                     li[_LI_PASS, l] = p
