@@ -488,6 +488,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     texels, texels32, table, ewa = tex.bytes, tex.words, tex.levels, tex.ewa
     lf, li, lu, texel = lanes.lf, lanes.li, lanes.lu, lanes.texel
     offsets, depth = samples.offsets, fb.depth
+    depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
     count = n_samples if n_samples != ANY_SAMPLES else offsets.shape[0]      # (a constant for 1 and 4)
     bin_start, bin_tri, tri_i, bbox = bins.start, bins.tri, tris.i, tris.bbox
     depth_func, write_z = state.depth_func, state.write_z
@@ -534,22 +535,18 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                 _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
             else:
                 any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
-            # Depth test (scalar); a quad without a passed sample samples level 0 alone.
-            # A helper lane (mask 0) is not tested: at the right or bottom edge
-            # of a picture of odd size it lies outside the picture, and its
-            # depth would be read (and written back) one pixel past a row,
-            # in another thread's tile, or past the buffer's end.
+            # Depth test (scalar; helper lanes untested, see `_depth_test_lanes`);
+            # a quad without a passed sample samples level 0 alone.
+            if use_depth and not state.alpha_test:          # (alpha test: after the texels, below)
+                _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
+            else:
+                for l in range(n):
+                    li[_LI_PASS, l] = li[_LI_COV, l]
             block_passed = 0
             block_two = False                             # a passed quad samples two levels
             for q in range(n >> 2):
-                quad_passed = 0
-                for l in range(4 * q, 4 * q + 4):
-                    p = li[_LI_COV, l]
-                    if use_depth and not state.alpha_test and p != 0:   # (alpha test: after the texels, below)
-                        p = _depth_test_lane(p, li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
-                                             count)
-                    li[_LI_PASS, l] = p
-                    quad_passed |= p
+                l = 4 * q
+                quad_passed = li[_LI_PASS, l] | li[_LI_PASS, l + 1] | li[_LI_PASS, l + 2] | li[_LI_PASS, l + 3]
                 block_passed |= quad_passed
                 if state.texture and not sampler.beyond:  # the quad's levels on its lanes: what each filter reads
                     block_two |= _quad_levels(q, quad_passed != 0, sampler, table, vectorised, any_two, lf, li)

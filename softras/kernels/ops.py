@@ -105,20 +105,30 @@ def _depth_test_lanes(n, li, depth, depths, depth_func, write_z, n_samples):
     from its _LI_COV mask into _LI_PASS.  depths : ``depth.reshape(-1)``.
     At one sample a "less" test with depth writes, the common case, runs in a
     copy of its own with the test a constant (no dispatch on the function
-    for each lane) and the pixel's index in depths worked out once."""
+    for each lane) and the pixel's index in depths worked out once.
+
+    A lane with mask 0 (a helper pixel of a textured draw's 2x2 quad) passes
+    nothing and touches no depth: at the right or bottom edge of a picture
+    of odd width or height it lies one pixel outside the picture, where its
+    depth would be one pixel past a row (in another thread's tile) or past
+    the buffer's end (tests/test_helper_lanes.py)."""
     if n_samples == 1 and depth_func == LESS and write_z:
         width = depth.shape[1]
         for l in range(n):
+            if li[_LI_COV, l] == 0:
+                li[_LI_PASS, l] = 0
+                continue
             i = li[_LI_PY, l] * width + li[_LI_PX, l]
             k = li[_LI_Z, l]
             stored = depths[i]
-            passed = (li[_LI_COV, l] & 1 != 0) & _depth_pass_k(LESS, k, stored)
+            passed = _depth_pass_k(LESS, k, stored)
             depths[i] = k if passed else stored
             li[_LI_PASS, l] = passed
         return
     for l in range(n):
-        li[_LI_PASS, l] = _depth_test_lane(li[_LI_COV, l], li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func,
-                                           write_z, n_samples)
+        mask = li[_LI_COV, l]
+        li[_LI_PASS, l] = (_depth_test_lane(mask, li, l, depth, li[_LI_PY, l], li[_LI_PX, l], depth_func, write_z,
+                                            n_samples) if mask != 0 else 0)
 
 
 @numba.njit(cache=True, inline="always")
