@@ -610,7 +610,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
     `softras.pipeline.render.draw_triangles` does them.
     Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
-    depths (vectorised), the depth test (scalar, without branches;
+    depths (vectorised), the depth test (scalar, no branch on its outcome;
     `softras.kernels.ops._depth_test_lanes`): unlit,
     each lane in its place (a failed lane is shaded and not written), lit
     per fragment (Phong) or alpha-tested, keeping the lanes with a passed
