@@ -610,11 +610,11 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
     `softras.pipeline.render.draw_triangles` does them.
     Depth-test, shade and write the n lanes (covered pixels of one
     untextured triangle, listed by `_flat_tile` with pixel and coverage mask):
-    depths (vectorised), the depth test (scalar, no branch on its outcome;
-    `softras.kernels.ops._depth_test_lanes`): unlit,
-    each lane in its place (a failed lane is shaded and not written), lit
-    per fragment (Phong) or alpha-tested, keeping the lanes with a passed
-    sample; a draw without depth test or alpha test keeps every lane
+    depths (vectorised), the depth test of every lane in its place (scalar,
+    no branch on its outcome; `softras.kernels.ops._depth_test_lanes`):
+    unlit, each lane stays there (a failed lane is shaded and not written),
+    lit per fragment (Phong) or alpha-tested, the lanes with a passed sample
+    move to the front; a draw without depth test or alpha test keeps every lane
     (vectorised); perspective weights and colour bytes (vectorised), the
     writes (scalar), or into an rgba32f buffer the float colours and their
     writes (`softras.kernels.rgba32f._float_fragments`); an alpha-tested
@@ -654,11 +654,14 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
             lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
         kept = np.int64(n)
     else:                                   # Phong or alpha-tested: the passed lanes to the front
+        if use_depth:
+            _depth_test_lanes(n, li, depth, depths, depth_func, write_z, n_samples)
+        else:
+            for l in range(n):
+                li[_LI_PASS, l] = li[_LI_COV, l]
         for l in range(n):
             px, py = li[_LI_PX, l], li[_LI_PY, l]
-            p = li[_LI_COV, l]
-            if use_depth:
-                p = _depth_test_lane(p, li, l, depth, py, px, depth_func, write_z, n_samples)
+            p = li[_LI_PASS, l]
             li[_LI_PX, kept] = px
             li[_LI_PY, kept] = py
             li[_LI_PASS, kept] = p
