@@ -88,8 +88,8 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI
                                    LaneBuffers)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
-from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lane, _depth_test_lanes, _uses_depth,
-                                 _write_lanes, clear, clear_floats, holds_floats)
+from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lanes, _uses_depth, _write_lanes,
+                                 clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _tile_box)
 from softras.kernels.rgba32f import _float_fragments
@@ -537,11 +537,11 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                 any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
             # Depth test (scalar; helper lanes untested, see `_depth_test_lanes`);
             # a quad without a passed sample samples level 0 alone.
-            if use_depth and not state.alpha_test:          # (alpha test: after the texels, below)
-                _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
-            else:
+            if state.alpha_test:                          # (its depth test after the texels, below)
                 for l in range(n):
                     li[_LI_PASS, l] = li[_LI_COV, l]
+            else:
+                _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
             block_passed = 0
             block_two = False                             # a passed quad samples two levels
             for q in range(n >> 2):
@@ -578,12 +578,9 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                              state.mapped != NO_MAP)
             elif not words:
                 _lane_words(n, t, tris.colors, lf, li, True, state.flat)
-            if state.alpha_test:
-                _lane_alpha_test(n, t, tris.colors, lf, li, _LI_PASS, state.texture, state.flat, state.cutoff)
-                for l in range(n):
-                    if use_depth and li[_LI_PASS, l]:
-                        li[_LI_PASS, l] = _depth_test_lane(li[_LI_PASS, l], li, l, depth, li[_LI_PY, l],
-                                                           li[_LI_PX, l], depth_func, write_z, count)
+            if state.alpha_test:                          # (a discarded lane's coverage made 0)
+                _lane_alpha_test(n, t, tris.colors, lf, li, _LI_COV, state.texture, state.flat, state.cutoff)
+                _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
             if state.rgba32f:
                 _float_fragments(n, t, tris.colors, tris.lit, lf, li, lights, lighting, state, fb.color_f,
                                  np.int64(count))
@@ -654,11 +651,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
             lf[_LF_CX, l], lf[_LF_CY, l] = li[_LI_PX, l] + 0.5, li[_LI_PY, l] + 0.5
         kept = np.int64(n)
     else:                                   # Phong or alpha-tested: the passed lanes to the front
-        if use_depth:
-            _depth_test_lanes(n, li, depth, depths, depth_func, write_z, n_samples)
-        else:
-            for l in range(n):
-                li[_LI_PASS, l] = li[_LI_COV, l]
+        _depth_test_lanes(n, li, depth, depths, depth_func, write_z, n_samples)
         for l in range(n):
             px, py = li[_LI_PX, l], li[_LI_PY, l]
             p = li[_LI_PASS, l]

@@ -111,7 +111,13 @@ def _depth_test_lanes(n, li, depth, depths, depth_func, write_z, n_samples):
     nothing and touches no depth: at the right or bottom edge of a picture
     of odd width or height it lies one pixel outside the picture, where its
     depth would be one pixel past a row (in another thread's tile) or past
-    the buffer's end (tests/test_helper_lanes.py)."""
+    the buffer's end (tests/test_helper_lanes.py).  A draw that neither
+    tests nor writes depth (`_uses_depth`) passes every lane's mask as it is,
+    without reading the buffer or the lanes' depths (not computed then)."""
+    if not _uses_depth(depth_func, write_z):
+        for l in range(n):
+            li[_LI_PASS, l] = li[_LI_COV, l]
+        return
     if n_samples == 1 and depth_func == LESS and write_z:
         width = depth.shape[1]
         for l in range(n):
