@@ -29,7 +29,11 @@ naming the readable function it must equal:
    (`softras.kernels.interpolate`), texture (`softras.kernels.texture`; here
    `_textured_tile`: each 8x8 block's covered 2x2 quads, with per-quad
    derivatives and level of detail), RGBA8 rounding, then the depth test,
-   blend and write (`softras.kernels.ops`).  No fragment list exists.
+   blend and write (`softras.kernels.ops`).  At 1 or 4 samples an unlit,
+   untextured draw without alpha test into RGBA8 (the commonest) skips the
+   lanes: each row's run of covered pixels is depth-tested, shaded, blended
+   and stored where it lies, in one loop LLVM vectorises (`_flat_row`).
+   No fragment list exists.
 
 The framebuffer here is what gl precision stores anyway: colour as RGBA8
 bytes and depth as 24-bit integers (`softras.kernels.ops`); an rgba32f
@@ -83,18 +87,20 @@ os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
-from softras.kernels.interpolate import _lane_alpha_test, _lane_depths, _lane_weights, _lane_words, plain_colors
+from softras.kernels.interpolate import (RGBA, _corner_colors, _corners, _lane_alpha_test, _lane_depths,
+                                        _lane_weights, _lane_words, _shade_word, _weights_at, plain_colors)
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES,
                                    LaneBuffers)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
-from softras.kernels.ops import (NO_FLOATS, NO_WORDS, Framebuffer, _depth_test_lanes, _uses_depth, _write_lanes,
-                                 clear, clear_floats, holds_floats)
+from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
+                                 _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
-                                       _list_row, _list_whole_block, _tile_box)
+                                       _list_row, _list_whole_block, _row_run, _tile_box)
 from softras.kernels.rgba32f import _float_fragments
 from softras.kernels.scratch import _Scratch, read_only
-from softras.kernels.setup import _I_VIS, _NF, _NI, CULL_CODES, Clipped, Triangles, _setup
+from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _I_VIS, _NF, _NI, CULL_CODES, Clipped,
+                                   Triangles, _setup)
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
@@ -394,7 +400,10 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     (`softras.kernels.rasterize._list_row`); the covered pixels listed as
     lanes and shaded (`_flat_block`) from LANES of them on (a row adds at
     most TILE, so the lanes never exceed 2 * LANES) and after the
-    triangle's last block or row.  The per-pixel arithmetic is
+    triangle's last block or row.  At 1 or 4 samples an unlit draw without
+    alpha test into RGBA8 shades each row's run where it lies instead
+    (`_flat_row`): the lanes' steps in one loop, without writing the pixels
+    down first (docs/speed.md, "Thirty-second round").  The per-pixel arithmetic is
     `softras.pipeline.render.draw_triangles`'s, operation for operation.
 
     Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the thread's
@@ -410,12 +419,21 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     tri_f, tri_i, bbox, colors, uv, lit = tris.f, tris.i, tris.bbox, tris.colors, tris.uv, tris.lit
     color32, depth, color_f = fb.color32, fb.depth, fb.color_f
     depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
+    # At 1 or 4 samples an unlit draw without alpha test into RGBA8 shades
+    # each row's run where it lies (`_flat_row`), without lanes.
+    by_rows = (n_samples == 1 or n_samples == 4) and not (state.lit or state.alpha_test or state.rgba32f)
+    words = color32.reshape(-1)             # (the colour words: a pixel's samples one after another)
     full_mask = (1 << n_samples) - 1
     box = _sample_box(offsets)
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
+        if by_rows:
+            for y in range(y_start, y_end + 1):
+                _flat_row(x_start, x_end, y, edges, offsets, t, tri_f, colors, positions, depths, words,
+                          depth.shape[1], state, n_samples)
+            continue
         # The units k = 0 .. n_units - 1: at one sample the box's pixel rows
         # (`_list_row`), else its 8x8 blocks row by row; and k = n_units to
         # shade what is left: one call site of `_flat_block`, which numba
@@ -674,6 +692,149 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
     else:
         _lane_words(kept, t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, words, width, state, n_samples):
+    """`_flat_block` of an unlit, untextured triangle t's fragments in pixels
+    x0..x1 of row py at 1 or 4 samples a pixel (n_samples, a constant),
+    without alpha test, into an RGBA8 buffer: the row's run of covered
+    pixels (`softras.kernels.rasterize._row_run`, the pixels `_list_row`
+    lists; at 4 samples the union of each sample's run) depth-tested,
+    shaded and written where they lie, pixel by pixel (`_row_pixels`), with
+    no lane rows in between.  depths, words : the depth buffer and the
+    colour words seen as one row each (``reshape(-1)``, a pixel's samples
+    one after another); width : the picture's.  The common draws get a
+    copy of the pixel loop with their depth test, blend and shading
+    constants (so that LLVM vectorises it): "less" with depth writes and no
+    blend, interpolated or flat (one sample), and no depth with "over"."""
+    # The runs as one flat tuple (lo, hi, ...) a sample (numba's array
+    # analysis fails on a tuple of tuples indexed in a loop), four pairs
+    # for either count: one type where the count is not a constant (the
+    # driver of any count compiles this code, never runs it).
+    if n_samples == 1:
+        lo, hi = _row_run(x0, x1, py, edges, offsets)
+        runs = (lo, hi, lo, hi, lo, hi, lo, hi)
+    else:                                   # (4: one run per sample, and their union)
+        lo0, hi0 = _row_run(x0, x1, py, edges, offsets, 0)
+        lo1, hi1 = _row_run(x0, x1, py, edges, offsets, 1)
+        lo2, hi2 = _row_run(x0, x1, py, edges, offsets, 2)
+        lo3, hi3 = _row_run(x0, x1, py, edges, offsets, 3)
+        runs = (lo0, hi0, lo1, hi1, lo2, hi2, lo3, hi3)
+        lo = min(min(lo0, lo1), min(lo2, lo3))
+        hi = max(max(hi0, hi1), max(hi2, hi3))
+    if lo > hi:
+        return
+    corners, corner_colors = _corners(tri_f, t), _corner_colors(colors, t)
+    plane = (tri_f[t, _F_X], tri_f[t, _F_Y], tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY])
+    # (The sample positions as values, x and y a sample, four pairs as the
+    # runs: read from the array in the loop, they were loaded again after
+    # every store.)
+    if n_samples == 1:
+        positions = (positions[0, 0], positions[0, 1], positions[0, 0], positions[0, 1],
+                     positions[0, 0], positions[0, 1], positions[0, 0], positions[0, 1])
+    else:
+        positions = (positions[0, 0], positions[0, 1], positions[1, 0], positions[1, 1],
+                     positions[2, 0], positions[2, 1], positions[3, 0], positions[3, 1])
+    start, end = x0 + lo, x0 + hi
+    depth_func, write_z, blend, flat = state.depth_func, state.write_z, state.blend, state.flat
+    if depth_func == LESS and write_z and blend == 0 and not flat:
+        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, True,
+                    LESS, True, 0, False, n_samples)
+    elif depth_func == LESS and write_z and blend == 0 and n_samples == 1:
+        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, True,
+                    LESS, True, 0, True, n_samples)
+    elif not _uses_depth(depth_func, write_z) and blend == 1 and not flat:
+        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, False,
+                    0, False, 1, False, n_samples)
+    else:
+        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width,
+                    _uses_depth(depth_func, write_z), depth_func, write_z, blend, flat, n_samples)
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, use_depth,
+                depth_func, write_z, blend, flat, n_samples):
+    """Pixels start..end of row py, sample s of pixel px covered where
+    runs[2 s] <= px - x0 <= runs[2 s + 1] (one sample: `_row_pixels_1`): the
+    steps of `_flat_block` per pixel, with the same operations in the same
+    order (the pixels are distinct, so their order does not matter):
+    perspective weights (`_weights_at`) at the pixel centre and the colour
+    word (`_shade_word`; flat: corner 0's, weights (1, 0, 0)), then per
+    covered sample the depth from the plane
+    (`softras.kernels.interpolate._lane_depths`; plane = (x0, y0, z0,
+    dz/dx, dz/dy) of the set-up triangle, positions (x, y, ...) the
+    samples' within the pixel),
+    its test and write (`softras.kernels.ops._depth_test_lane`), the blend
+    over the stored word (`softras.kernels.ops._blend_word`; at 4 samples
+    per sample: `_write_word`'s one blend for equal samples gives the same
+    words) and the store of a passed sample's word.
+
+    Written for LLVM's vectoriser: no branch in the loop where the depth
+    function, blend, ``flat`` and the sample count are constants
+    (`_flat_row`'s copies): every value computed, every store a bitwise
+    select of the new value or the stored one (a pixel belongs to one tile,
+    so its thread alone reads and writes it), and the index an unsigned
+    integer, so that numba adds no test for negative indices and the loads
+    and stores are seen to be consecutive."""
+    fx0, fy0, z0, dzdx, dzdy = plane
+    cy = py + 0.5
+    if n_samples == 1:
+        _row_pixels_1(start, end, py, corners, corner_colors, plane, positions, depths, words, width, use_depth,
+                      depth_func, write_z, blend, flat)
+        return
+    for px in range(start, end + 1):
+        w = (1.0, 0.0, 0.0)
+        if not flat:
+            w = _weights_at(corners, px + 0.5, cy)
+        word = _shade_word(w, corner_colors, RGBA(1.0, 1.0, 1.0, 1.0))
+        pixel = np.uint64((py * width + px) * n_samples)
+        for s in range(n_samples):
+            # All ones where the sample is covered (and, below, passes), else 0.
+            keep = -np.int64((runs[2 * s] <= px - x0) & (px - x0 <= runs[2 * s + 1]))
+            i = pixel + np.uint64(s)
+            if use_depth:
+                ox, oy = positions[2 * s], positions[2 * s + 1]
+                k = _depth_k(z0 + dzdx * ((px + ox) - fx0) + dzdy * ((py + oy) - fy0))
+                stored = depths[i]
+                keep &= -np.int64(_depth_pass_k(depth_func, k, stored))
+                if write_z:
+                    depths[i] = np.int32((k & keep) | (stored & ~keep))
+            dst = np.int64(words[i])
+            out = word
+            if blend != 0:
+                out = _blend_word(blend, word, dst, (word >> 24) & 255)
+            words[i] = np.uint32((out & keep) | (dst & ~keep))
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _row_pixels_1(start, end, py, corners, corner_colors, plane, positions, depths, words, width, use_depth,
+                  depth_func, write_z, blend, flat):
+    """`_row_pixels` at one sample a pixel, every pixel covered: the same
+    steps without the loop over the samples (with it LLVM vectorised the
+    row's last pixels no more: the blended layers' gain of this path was
+    lost, 8.4 -> 9.4 ms on one thread)."""
+    fx0, fy0, z0, dzdx, dzdy = plane
+    row = py * width
+    zy = (py + positions[1]) - fy0
+    cy = py + 0.5
+    for px in range(start, end + 1):
+        i = np.uint64(row + px)
+        keep = np.int64(-1)                         # all ones: the pixel passed
+        if use_depth:
+            k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * zy)
+            stored = depths[i]
+            keep = -np.int64(_depth_pass_k(depth_func, k, stored))
+            if write_z:
+                depths[i] = np.int32((k & keep) | (stored & ~keep))
+        w = (1.0, 0.0, 0.0)
+        if not flat:
+            w = _weights_at(corners, px + 0.5, cy)
+        word = _shade_word(w, corner_colors, RGBA(1.0, 1.0, 1.0, 1.0))
+        dst = np.int64(words[i])
+        if blend != 0:
+            word = _blend_word(blend, word, dst, (word >> 24) & 255)
+        words[i] = np.uint32((word & keep) | (dst & ~keep))
 
 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`),

@@ -213,13 +213,14 @@ def _span(r, step, lo, hi):
 
 
 @numba.njit(cache=True, inline="always")
-def _row_run(x0, x1, py, edges, offsets):
-    """At one sample a pixel (offsets (1, 2)): the run of pixels of row py
-    in x0..x1 whose sample `_inside3` finds inside all three edges, as
-    (lo, hi) counted from x0 (empty: lo > hi).  A triangle covers one run
-    of a row's samples (the three edges' half-planes are convex), and each
-    edge bounds it by one exact division (`_span`)."""
-    sx, sy = x0 * 256 + offsets[0, 0], py * 256 + offsets[0, 1]
+def _row_run(x0, x1, py, edges, offsets, s=0):
+    """The run of pixels of row py in x0..x1 whose sample s (offsets (S,
+    2); at one sample a pixel, its one sample) `_inside3` finds inside all
+    three edges, as (lo, hi) counted from x0 (empty: lo > hi; never outside
+    0..x1 - x0).  A triangle covers one run of a row's samples (the three
+    edges' half-planes are convex), and each edge bounds it by one exact
+    division (`_span`)."""
+    sx, sy = x0 * 256 + offsets[s, 0], py * 256 + offsets[s, 1]
     lo, hi = _span(_edge_at(edges.e0, sx, sy), edges.e0.a * 256, 0, x1 - x0)
     lo, hi = _span(_edge_at(edges.e1, sx, sy), edges.e1.a * 256, lo, hi)
     return _span(_edge_at(edges.e2, sx, sy), edges.e2.a * 256, lo, hi)
