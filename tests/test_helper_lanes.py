@@ -25,7 +25,9 @@ import sys
 
 import pytest
 
-_CHILD = r"""
+# The child's set-up: `guarded` arrays, and the depth buffer of the
+# compiled path's renders taken from them.
+_GUARD = r"""
 import ctypes, mmap, sys
 import numpy as np
 import softras
@@ -49,7 +51,9 @@ def guarded(shape, dtype):
 
 take = draw._scratch.take
 draw._scratch.take = lambda name, shape, dtype: guarded(shape, dtype) if name == "depth" else take(name, shape, dtype)
+"""
 
+_CHILD = _GUARD + r"""
 width, height, samples = (int(a) for a in sys.argv[1:4])
 scene = softras.load_scene({
     "softras_scene": 1, "width": width, "height": height, "samples": samples, "background": [0, 0, 0, 1],
@@ -82,7 +86,7 @@ def test_a_textured_draw_reads_no_depth_outside_the_picture(width, height, sampl
 def test_the_guard_page_stops_a_read_past_the_end():
     """The check can fail: a compiled read one element past the guarded
     buffer kills the child (SIGSEGV)."""
-    program = _CHILD.split("width, height, samples")[0] + (
+    program = _GUARD + (
         "import numba\n"
         "@numba.njit(cache=False)\n"
         "def past(a, i):\n"

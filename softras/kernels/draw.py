@@ -777,12 +777,12 @@ def _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positio
     so its thread alone reads and writes it), and the index an unsigned
     integer, so that numba adds no test for negative indices and the loads
     and stores are seen to be consecutive."""
-    fx0, fy0, z0, dzdx, dzdy = plane
-    cy = py + 0.5
     if n_samples == 1:
         _row_pixels_1(start, end, py, corners, corner_colors, plane, positions, depths, words, width, use_depth,
                       depth_func, write_z, blend, flat)
         return
+    fx0, fy0, z0, dzdx, dzdy = plane
+    cy = py + 0.5
     for px in range(start, end + 1):
         w = (1.0, 0.0, 0.0)
         if not flat:
