@@ -328,6 +328,10 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     scene compiles only the variants it uses.  sources : `softras.kernels.stamp.sources_stamp`,
     in the cache key only."""
 
+    # Whether untextured rows may be shaded where they lie (`_flat_row`):
+    # a constant, so that the driver of any count does not compile them.
+    row_runs = n_samples == 1 or n_samples == 4
+
     @numba.njit(cache=True, parallel=True, error_model="numpy")
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting,
                    n_threads):
@@ -369,7 +373,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
                                           map_sampler, map_r, lights, lighting, lanes, n_samples)
                 else:
                     _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes,
-                               count)
+                               count, row_runs)
 
     return draw_tiles
 
@@ -390,7 +394,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_samples):
+def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_samples, row_runs):
     """One 64x64 tile of an untextured draw: its triangles in draw order; per
     triangle the 8x8 blocks of its bounding box inside the tile with the
     exact early-out / early-in corner test of
@@ -407,7 +411,9 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     `softras.pipeline.render.draw_triangles`'s, operation for operation.
 
     Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the thread's
-    `LaneBuffers`."""
+    `LaneBuffers`; row_runs : whether the driver's sample count is 1 or 4, a
+    constant, so that numba prunes the row code from the driver of any
+    count (it is pruned on constants only, and n_samples is none there)."""
     # Every array out of its record once per tile, here: numba counts a
     # reference to an array each time it is taken out of a record or passed
     # to a function (inlined or not), an atomic operation, and per triangle
@@ -421,7 +427,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
     # At 1 or 4 samples an unlit draw without alpha test into RGBA8 shades
     # each row's run where it lies (`_flat_row`), without lanes.
-    by_rows = (n_samples == 1 or n_samples == 4) and not (state.lit or state.alpha_test or state.rgba32f)
+    by_rows = not (state.lit or state.alpha_test or state.rgba32f)
     words = color32.reshape(-1)             # (the colour words: a pixel's samples one after another)
     full_mask = (1 << n_samples) - 1
     box = _sample_box(offsets)
@@ -429,7 +435,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
         t = bin_tri[j]
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
-        if by_rows:
+        if row_runs and by_rows:
             for y in range(y_start, y_end + 1):
                 _flat_row(x_start, x_end, y, edges, offsets, t, tri_f, colors, positions, depths, words,
                           depth.shape[1], state, n_samples)
@@ -709,12 +715,13 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
     constants (so that LLVM vectorises it): "less" with depth writes and no
     blend, interpolated or flat (one sample), and no depth with "over"."""
     # The runs as one flat tuple (lo, hi, ...) a sample (numba's array
-    # analysis fails on a tuple of tuples indexed in a loop), four pairs
-    # for either count: one type where the count is not a constant (the
-    # driver of any count compiles this code, never runs it).
+    # analysis fails on a tuple of tuples indexed in a loop).  (The two
+    # branches give tuples of different types: only the drivers of 1 and 4
+    # samples compile this code, where n_samples is a constant and numba
+    # keeps one branch.)
     if n_samples == 1:
         lo, hi = _row_run(x0, x1, py, edges, offsets)
-        runs = (lo, hi, lo, hi, lo, hi, lo, hi)
+        runs = (lo, hi)
     else:                                   # (4: one run per sample, and their union)
         lo0, hi0 = _row_run(x0, x1, py, edges, offsets, 0)
         lo1, hi1 = _row_run(x0, x1, py, edges, offsets, 1)
@@ -727,12 +734,10 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
         return
     corners, corner_colors = _corners(tri_f, t), _corner_colors(colors, t)
     plane = (tri_f[t, _F_X], tri_f[t, _F_Y], tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY])
-    # (The sample positions as values, x and y a sample, four pairs as the
-    # runs: read from the array in the loop, they were loaded again after
-    # every store.)
+    # (The sample positions as values, x and y a sample, as the runs: read
+    # from the array in the loop, they were loaded again after every store.)
     if n_samples == 1:
-        positions = (positions[0, 0], positions[0, 1], positions[0, 0], positions[0, 1],
-                     positions[0, 0], positions[0, 1], positions[0, 0], positions[0, 1])
+        positions = (positions[0, 0], positions[0, 1])
     else:
         positions = (positions[0, 0], positions[0, 1], positions[1, 0], positions[1, 1],
                      positions[2, 0], positions[2, 1], positions[3, 0], positions[3, 1])
