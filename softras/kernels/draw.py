@@ -18,8 +18,9 @@ naming the readable function it must equal:
 4. binning (`softras.kernels.rasterize._bin`): the visible triangles are
    listed, in draw order, in every 64x64-pixel tile their bounding box touches;
 5. the tile driver (here: `_make_draw_tiles`, one per sample count and
-   texturing): tiles in parallel (numba prange: a pixel belongs to one tile,
-   so tiles never race on the framebuffer); within a tile the triangles in
+   texturing): tiles in parallel (shares of the tiles on threads,
+   `softras.kernels.threads`: a pixel belongs to one tile, so tiles never
+   race on the framebuffer); within a tile the triangles in
    draw order; per triangle the 8x8 blocks of its bounding box inside the
    tile with the exact early-out / early-in corner test of
    `softras.pipeline.rasterize` (`softras.kernels.rasterize`); the covered
@@ -65,10 +66,9 @@ per-draw constants outside of the per-pixel work).
 
 Why one module of ~600 lines: the tile drivers (`_make_draw_tiles`), the
 tile functions they inline (`_flat_tile`, `_flat_block`, `_textured_tile`;
-inside a driver's parallel loop numba gives their arrays ``noalias``,
-docs/speed.md, "Compile time" and "Twenty-seventh round"), and the Python
-side that picks a driver and hands it its arrays are one compiled unit
-under one cache key.
+called, not inlined, they drew 6-18 % slower, docs/speed.md, "Compile
+time" and "Twenty-seventh round"), and the Python side that picks a
+driver and hands it its arrays are one compiled unit under one cache key.
 """
 
 from __future__ import annotations
@@ -102,6 +102,7 @@ from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _I_VIS, _NF, _NI, CULL_CODES, Clipped,
                                    Triangles, _setup)
 from softras.kernels.stamp import sources_stamp
+from softras.kernels.threads import NoAliasCompiler, on_threads
 from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
                                      _lanes_bilinear_fixed, _lanes_lod, _quad_levels, _sample_lane,
@@ -121,9 +122,10 @@ SAMPLE_BYTES = 4 + 4
 SAMPLE_BYTES_RGBA32F = 16 + 4
 
 # A draw's sample positions: offsets (S, 2) int64 in raster units
-# (`softras.pipeline.setup.sample_offsets`, gl) and positions (S, 2) float64
-# within the pixel.
-Samples = namedtuple("Samples", ["offsets", "positions"])
+# (`softras.pipeline.setup.sample_offsets`, gl), positions (S, 2) float64
+# within the pixel, and box (4,) int64 their extremes in raster units
+# (`softras.pipeline.rasterize._sample_box`: min x, max x, min y, max y).
+Samples = namedtuple("Samples", ["offsets", "positions", "box"])
 
 # A draw's per-fragment operations, as codes: depth function
 # (`softras.pipeline.ops.DEPTH_FUNCS`), whether passed depths are written
@@ -273,7 +275,8 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
                                if map_name is not None else NO_TEXTURE)
     tiles_x = (width + TILE - 1) // TILE
     tiles_y = (height + TILE - 1) // TILE
-    bins = Bins(*_bin(visible, tris.bbox, tiles_x, tiles_y), tiles_x)
+    bin_start, bin_tri, pixels = _bin(visible, tris.bbox, tiles_x, tiles_y)
+    bins = Bins(bin_start, bin_tri, tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     cutoff = material.alpha_cutoff
     rgba32f = holds_floats(fb)
@@ -284,9 +287,35 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
                       float(material.bump_scale), rgba32f)
     is_textured = textured(material)
     draw_tiles = _DRAW_TILES[driver_samples(len(offsets), is_textured), is_textured]
-    # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
-    draw_tiles(tuple(bins), tuple(tris), (offsets, positions), tuple(fb), tuple(state), sampler, tuple(texels),
-               map_sampler, tuple(map_texels), lights, tuple(lighting), n_threads)
+    # (The records as plain tuples: see `softras.kernels.setup.Clipped`.  The
+    # sample box in Python: numba's array min and max need its reference
+    # counting, which the driver is compiled without.)
+    records = (tuple(bins), tuple(tris), (offsets, positions, np.array(_sample_box.py_func(offsets), np.int64)),
+               tuple(fb), tuple(state), sampler, tuple(texels), map_sampler, tuple(map_texels), lights,
+               tuple(lighting))
+    n_shares = shares(pixels, n_threads)
+    on_threads(lambda r: draw_tiles(*records, lane_buffers(len(offsets)), r, n_shares), n_shares)
+
+
+# A draw whose triangles' boxes cover fewer pixels than this is drawn on one
+# thread: handing a share to a second thread and waiting for it (~50 us
+# here) costs more than the share saves.  One quad on two threads against
+# one, 512^2: even at 2 x 256^2 pixels of boxes, faster at 2 x 384^2
+# (docs/speed.md, "Thirty-third round").
+SHARE_PIXELS = 131072
+
+
+def shares(pixels: int, n_threads: int) -> int:
+    """How many threads draw a draw whose triangles' boxes cover ``pixels``
+    pixels (`_bin`): n_threads, or one below SHARE_PIXELS."""
+    return n_threads if pixels >= SHARE_PIXELS else 1
+
+
+def lane_buffers(n_samples: int) -> LaneBuffers:
+    """A share's `LaneBuffers` for a draw of n_samples samples a pixel
+    (`softras.kernels.lanes`), zeroed."""
+    return LaneBuffers(np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64),
+                       np.zeros((8, LANES), np.uint64), np.empty((2, 4)), np.zeros((3, n_samples), np.int64))
 
 
 _scratch = _Scratch()
@@ -320,7 +349,8 @@ def driver_samples(samples: int, is_textured: bool) -> int:
 
 def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
-    the parallel tile driver compiled for one sample count (`DRIVER_SAMPLES`:
+    the tile driver (one share of it, `softras.kernels.threads.on_threads`)
+    compiled for one sample count (`DRIVER_SAMPLES`:
     1, 4 (untextured), or ANY_SAMPLES for the count of the draw's sample
     table) and textured or not, as constants (closure variables are compile-time constants to
     numba, and part of its cache key): the compiler unrolls the per-sample
@@ -332,56 +362,59 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     # a constant, so that the driver of any count does not compile them.
     row_runs = n_samples == 1 or n_samples == 4
 
-    @numba.njit(cache=True, parallel=True, error_model="numpy")
-    def draw_tiles(bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting,
-                   n_threads):
+    # Compiled as numba compiled it in the body of a parallel loop (the
+    # driver was one until the thirty-third round): with ``noalias`` on its
+    # arrays (`softras.kernels.threads.NoAliasCompiler`) and without
+    # reference counting (``_nrt=False``).  It has nothing to free (the
+    # lanes come from `lane_buffers`), and counting the references to
+    # arrays taken out of records and handed to inlined functions cost the
+    # 24k grid ~7 % of its time in NRT_incref and NRT_decref.
+    @numba.njit(cache=True, nogil=True, error_model="numpy", _nrt=False, pipeline_class=NoAliasCompiler)
+    def draw_tiles(bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting, lanes,
+                   r, n_threads):
         """`softras.pipeline.render.draw_triangles` for one triangle draw after its
-        set-up: rasterize, shade and apply every binned triangle (`Bins` of the
-        set-up `Triangles`) at the `Samples`, tiles in parallel, into the
-        `Framebuffer` fb with the `DrawState`, the texture's `Sampler` and
-        `Texels` tex, the normal or bump map's (map_sampler, map_tex), and
-        for Phong shading the light table and `Lighting`
-        (`softras.kernels.light`).  The records but the sampler come as plain tuples
-        (`softras.kernels.setup.Clipped`) and are named again here.  (A
-        parallel loop takes its records apart into its arguments, one level
-        deep: a record may hold arrays or scalars, not records.)
-        Thread r of ``n_threads`` draws tiles r, r + n_threads, ... (interleaved,
-        so a scene covering only part of the picture still keeps every thread busy).
+        set-up, share r of n_threads (`softras.kernels.threads.on_threads`):
+        rasterize, shade and apply every binned triangle (`Bins` of the
+        set-up `Triangles`) in tiles r, r + n_threads, ... (interleaved, so
+        a scene covering only part of the picture still keeps every thread
+        busy) at the `Samples`, into the `Framebuffer` fb with the
+        `DrawState`, the texture's `Sampler` and `Texels` tex, the normal or
+        bump map's (map_sampler, map_tex), and for Phong shading the light
+        table and `Lighting` (`softras.kernels.light`), with this share's
+        own `LaneBuffers` lanes.  The records but the sampler come as plain
+        tuples (`softras.kernels.setup.Clipped`) and are named again here.
         """
         stamp = sources                 # noqa: F841  (a closure variable: the cache key, `softras.kernels.stamp`)
         n_tiles = bins[0].shape[0] - 1
         count = n_samples if n_samples != ANY_SAMPLES else samples[0].shape[0]
-        for r in numba.prange(n_threads):
-            lanes = LaneBuffers(np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + count, 2 * LANES), np.int64),
-                                np.zeros((8, LANES), np.uint64), np.empty((2, 4)),
-                                np.zeros((3, count), np.int64))
-            # (One statement each: a tuple of records, built and unpacked,
-            # trips numba's array analysis, see `softras.kernels.rasterize.Edges`.)
-            bins_r = Bins(*bins)
-            tris_r = Triangles(*tris)
-            samples_r = Samples(*samples)
-            fb_r = Framebuffer(*fb)
-            state_r = DrawState(*state)
-            tex_r = Texels(*tex)
-            map_r = Texels(*map_tex)
-            for tile in range(r, n_tiles, n_threads):
-                if textured and n_samples == 1:
-                    _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, map_sampler,
-                                   map_r, lights, lighting, lanes, n_samples)
-                elif textured:
-                    _textured_tile_called(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r,
-                                          map_sampler, map_r, lights, lighting, lanes, n_samples)
-                else:
-                    _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes,
-                               count, row_runs)
+        # (One statement each: a tuple of records, built and unpacked,
+        # trips numba's array analysis, see `softras.kernels.rasterize.Edges`.)
+        bins_r = Bins(*bins)
+        tris_r = Triangles(*tris)
+        samples_r = Samples(*samples)
+        fb_r = Framebuffer(*fb)
+        state_r = DrawState(*state)
+        tex_r = Texels(*tex)
+        map_r = Texels(*map_tex)
+        lanes_r = LaneBuffers(*lanes)
+        for tile in range(r, n_tiles, n_threads):
+            if textured and n_samples == 1:
+                _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, map_sampler,
+                               map_r, lights, lighting, lanes_r, n_samples)
+            elif textured:
+                _textured_tile_called(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r,
+                                      map_sampler, map_r, lights, lighting, lanes_r, n_samples)
+            else:
+                _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes_r,
+                           count, row_runs)
 
     return draw_tiles
 
 
-# What the tile code costs to compile (docs/speed.md, "Compile time" and
-# "Twenty-seventh round").  The tile functions are inlined into the driver
-# where that pays: the body of a parallel loop gets numba's noalias on its
-# arrays.  As a separate function `_flat_tile` drew the 24k grid 10-18 %
+# What the tile code costs to compile (docs/speed.md, "Compile time",
+# "Twenty-seventh round" and "Thirty-third round").  The tile functions are
+# inlined into the driver where that pays.  As a separate function (then
+# in a numba parallel loop) `_flat_tile` drew the 24k grid 10-18 %
 # slower, and `_textured_tile` textured_phong_8k_1024 6-15 % slower with
 # two threads (the floor 6-12 % in most rounds, the bump map 1-13 %).  A
 # driver inlines only the tile function its ``textured`` constant selects.
@@ -430,7 +463,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     by_rows = not (state.lit or state.alpha_test or state.rgba32f)
     words = color32.reshape(-1)             # (the colour words: a pixel's samples one after another)
     full_mask = (1 << n_samples) - 1
-    box = _sample_box(offsets)
+    box = samples.box
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
         edges = _edges(tri_i, t)
@@ -519,7 +552,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     use_depth = _uses_depth(depth_func, write_z)
     vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
     full_mask = (1 << count) - 1
-    box = _sample_box(offsets)
+    box = samples.box
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
         edges = _edges(tri_i, t)

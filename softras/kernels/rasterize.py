@@ -50,13 +50,16 @@ Bins = namedtuple("Bins", ["start", "tri", "tiles_x"])
 
 @numba.njit(cache=True)
 def _bin(visible, bbox, tiles_x, tiles_y):
-    """Per-tile triangle lists in draw order: (bin_start (tiles + 1,), bin_tri (N,)),
-    tile k's triangles at bin_tri[bin_start[k]:bin_start[k + 1]] (visible : the
-    set-up triangles `softras.pipeline.setup.setup_triangles` keeps, bbox :
-    their pixel boxes)."""
+    """Per-tile triangle lists in draw order: (bin_start (tiles + 1,), bin_tri (N,),
+    pixels), tile k's triangles at bin_tri[bin_start[k]:bin_start[k + 1]]
+    (visible : the set-up triangles `softras.pipeline.setup.setup_triangles`
+    keeps, bbox : their pixel boxes), and pixels the sum of the boxes'
+    areas (the draw's work, for `softras.kernels.draw.shares`)."""
     counts = np.zeros(tiles_x * tiles_y + 1, np.int64)
+    pixels = 0
     for v in range(visible.shape[0]):
         t = visible[v]
+        pixels += (bbox[t, 1] - bbox[t, 0] + 1) * (bbox[t, 3] - bbox[t, 2] + 1)
         for ty in range(bbox[t, 2] // TILE, bbox[t, 3] // TILE + 1):
             for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE + 1):
                 counts[ty * tiles_x + tx + 1] += 1
@@ -70,7 +73,7 @@ def _bin(visible, bbox, tiles_x, tiles_y):
                 k = ty * tiles_x + tx
                 out[fill[k]] = t
                 fill[k] += 1
-    return start, out
+    return start, out, pixels
 
 
 @numba.njit(cache=True, inline="always")
