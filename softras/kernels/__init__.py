@@ -16,6 +16,8 @@ the stage it speeds up and names the readable function it must equal:
 - `ops`: `softras.pipeline.ops` (depth test, blending, the writes);
 - `lanes`, `rgba8`, `scratch`: the kernels' own representations (lane rows,
   RGBA8 words in 16-bit lanes, reused buffers);
+- `threads`: the tile drivers' shares on threads, and the compiler that
+  gives them ``noalias``;
 - `draw`: the per-draw fusion of them all, and the dispatch (`unsupported`,
   `render_samples`).
 
