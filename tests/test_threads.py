@@ -1,0 +1,72 @@
+"""The tile drivers' shares on threads (softras.kernels.threads): every share
+runs once, an error reaches the caller after every share has ended, and a
+draw cut into shares gives the bytes of the same draw in one share."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import softras
+from softras.kernels import draw, threads
+
+
+def test_every_share_runs_once_and_share_zero_on_the_calling_thread():
+    seen, lock = [], threading.Lock()
+
+    def share(r):
+        with lock:
+            seen.append((r, threading.get_ident()))
+
+    threads.on_threads(share, 3)
+    assert sorted(r for r, _ in seen) == [0, 1, 2]
+    assert dict(seen)[0] == threading.get_ident()
+    seen.clear()
+    threads.on_threads(share, 1)
+    assert seen == [(0, threading.get_ident())]
+
+
+def test_an_error_reaches_the_caller_after_every_share_has_ended():
+    ended = []
+
+    def share(r):
+        if r == 1:
+            raise ValueError("share 1 failed")
+        time.sleep(0.05)
+        ended.append(r)
+
+    with pytest.raises(ValueError, match="share 1 failed"):
+        threads.on_threads(share, 3)
+    assert sorted(ended) == [0, 2]
+
+
+@pytest.mark.parametrize("samples, pattern", [(1, "gl"), (4, "gl"), (8, "halton")])
+def test_a_draw_in_shares_gives_the_bytes_of_one_share(samples, pattern, monkeypatch):
+    """Blended layers without a depth test (a tile drawn twice would blend
+    twice), textured and lit, at each tile driver's sample count: two and
+    three shares against one."""
+    scene = softras.load_scene(draw_scene())
+    monkeypatch.setattr(draw, "SHARE_PIXELS", 1 << 60)
+    one = softras.render(scene, samples=samples, pattern=pattern)
+    monkeypatch.setattr(draw, "SHARE_PIXELS", 0)
+    for n in (2, 3):
+        monkeypatch.setattr(draw.numba, "get_num_threads", lambda n=n: n)
+        assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), one), f"{n} shares"
+
+
+def draw_scene() -> dict:
+    quad = {"positions": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], "indices": [[0, 1, 2], [0, 2, 3]],
+            "uvs": [[0, 0], [1, 0], [1, 1], [0, 1]], "normals": [[0, 0, 1]] * 4}
+    nodes = [{"name": f"layer{k}", "mesh": quad, "translate": [0.1 * k, 0.05 * k, 0.1 * k], "blend": "over",
+              "depth_test": False, "material": {"color": [1, 0.5, 0.2, 0.5], "texture": "checker", "shading": "phong"}}
+             for k in range(3)]
+    return {"softras_scene": 1, "width": 200, "height": 150, "background": [0, 0, 0, 1],
+            "camera": {"projection": "perspective", "fov_y": 50, "near": 0.1, "far": 100, "eye": [0, 0, 3],
+                       "target": [0, 0, 0]},
+            "lights": [{"type": "point", "position": [1, 2, 3], "color": [1, 1, 1]}],
+            "textures": {"checker": {"procedural": "checker", "size": [64, 64],
+                                     "min_filter": "linear_mipmap_linear"}},
+            "nodes": nodes}
