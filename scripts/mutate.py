@@ -415,6 +415,10 @@ MUTATIONS: tuple[Mutation, ...] = (
        E("softras/kernels/draw.py", "keep = -np.int64((runs[2 * s] <= px - x0) & (px - x0 <= runs[2 * s + 1]))",
          "keep = -np.int64(runs[2 * s] <= px - x0)"),
        (FAST,)),
+    _m("fast_share_lost", "rasterize", "fast path",
+       "the tile driver's last share never runs on a thread of its own (its tiles stay clear)",
+       E("softras/kernels/threads.py", "for r in range(1, n_threads)]", "for r in range(1, n_threads - 1)]"),
+       (FAST, "tests/test_threads.py")),
     _m("fast_helper_lane_depth", "depth test", "fast path",
        "the depth test reads and writes back the depths of helper lanes (outside the picture at odd sizes)",
        (E("softras/kernels/ops.py", "            if li[_LI_COV, l] == 0:\n                li[_LI_PASS, l] = 0\n"

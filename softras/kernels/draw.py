@@ -443,15 +443,16 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     down first (docs/speed.md, "Thirty-second round").  The per-pixel arithmetic is
     `softras.pipeline.render.draw_triangles`'s, operation for operation.
 
-    Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the thread's
+    Arguments as `_make_draw_tiles`' ``draw_tiles``; lanes : the share's
     `LaneBuffers`; row_runs : whether the driver's sample count is 1 or 4, a
     constant, so that numba prunes the row code from the driver of any
     count (it is pruned on constants only, and n_samples is none there)."""
-    # Every array out of its record once per tile, here: numba counts a
-    # reference to an array each time it is taken out of a record or passed
-    # to a function (inlined or not), an atomic operation, and per triangle
-    # or block that showed: passing the records on to `_flat_block` made the
-    # 24k-triangle grid's tile kernel 4-6 % slower.
+    # Every array out of its record once per tile, here: where numba counts
+    # references (the driver's callees that are not inlined; the driver
+    # itself no longer does), it counts one each time an array is taken out
+    # of a record or passed to a function, an atomic operation, and per
+    # triangle or block that showed: passing the records on to `_flat_block`
+    # made the 24k-triangle grid's tile kernel 4-6 % slower.
     lf, li, rows = lanes.lf, lanes.li, lanes.rows
     offsets, positions = samples.offsets, samples.positions
     bin_start, bin_tri = bins.start, bins.tri

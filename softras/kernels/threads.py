@@ -38,6 +38,7 @@ class NoAliasCompiler(compiler.Compiler):
         self.state.flags.noalias = True
         return super().define_pipelines()
 
+
 _pools: dict[tuple[int, int], ThreadPoolExecutor] = {}
 _lock = threading.Lock()
 
