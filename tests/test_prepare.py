@@ -312,8 +312,9 @@ def test_an_unknown_mode_is_refused(monkeypatch):
 def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     """numba's cache checks only a kernel's own file: the tile drivers' key
     (`softras.kernels.draw._SOURCES`) must change with pipeline/ops.py,
-    pipeline/texture.py, pipeline/rasterize.py and pipeline/texture_beyond.py,
-    whose kernels they inline (the last through softras's filters,
+    pipeline/texture.py and pipeline/texture_beyond.py, whose kernels they
+    inline (pipeline/rasterize.py's sample box is computed in Python, once
+    a pass) (the last through softras's filters,
     `softras.kernels.texture_beyond._beyond_texel`, keyed so too), and
     pipeline/libm.py (the Phong kernels' pow), the line
     kernel's with pipeline/lines.py, ops.py and rasterize.py, and the exact
@@ -333,7 +334,7 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
 
     line_key = key(k_lines._DRAW_LINES)
     exact_key = key(k_exact._DRAW)
-    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, rasterize, libm, texture_beyond)
+    assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, libm, texture_beyond)
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize, clip_stage)]
     assert exact_key == [stamp.sources_stamp(rasterize, ops, texture, libm, texture_beyond)]
     for kernel in (k_exact._ANISOTROPIC, k_exact._PHONG, k_exact._UV_AT, k_exact._TEXELS, k_exact._MAP_TEXELS):

@@ -109,7 +109,7 @@ from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texe
                                      texture_tables)
 from softras.kernels.texture_beyond import _beyond_lane, beyond_tables
 from softras.pipeline import clip as clip_stage
-from softras.pipeline import libm, ops, rasterize, sampling, setup, texture, texture_beyond, vertex
+from softras.pipeline import libm, ops, sampling, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import check_sample_memory
 from softras.pipeline.texture import WRAP_CODES
@@ -216,6 +216,9 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
              else np.empty(shape + (4,), dtype))
     offsets = np.ascontiguousarray(offsets, np.int64)
     positions = np.ascontiguousarray(positions, np.float64)
+    # (The sample box once a pass, in Python: numba's array min and max need
+    # its reference counting, which the tile drivers are compiled without.)
+    samples = Samples(offsets, positions, np.array(_sample_box.py_func(offsets), np.int64))
     if rgba8:
         clear(color, depth, ops.unorm8_bytes(ops.premultiplied(scene.background)))
         fb = Framebuffer(color.view(np.uint32).reshape(shape), depth, NO_FLOATS)
@@ -226,14 +229,15 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
         if draw.mesh.primitive == "lines":
             draw_lines(scene, draw, fb, positions)
         else:
-            draw_triangles(scene, draw, fb, offsets, positions, texture_fixed_point, texture_filter)
+            draw_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter)
     return color
 
 
-def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_point, texture_filter=None) -> None:
-    """One triangle draw into the byte framebuffer fb (`softras.kernels.ops.Framebuffer`):
-    `softras.pipeline.render.draw_triangles` in gl precision (see the module
-    docstring)."""
+def draw_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None) -> None:
+    """One triangle draw into the byte framebuffer fb (`softras.kernels.ops.Framebuffer`)
+    at the pass's `Samples`: `softras.pipeline.render.draw_triangles` in gl
+    precision (see the module docstring)."""
+    offsets = samples.offsets
     mesh = draw.mesh
     width, height = scene.width, scene.height
     mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
@@ -287,12 +291,9 @@ def draw_triangles(scene: Scene, draw, fb, offsets, positions, texture_fixed_poi
                       float(material.bump_scale), rgba32f)
     is_textured = textured(material)
     draw_tiles = _DRAW_TILES[driver_samples(len(offsets), is_textured), is_textured]
-    # (The records as plain tuples: see `softras.kernels.setup.Clipped`.  The
-    # sample box in Python: numba's array min and max need its reference
-    # counting, which the driver is compiled without.)
-    records = (tuple(bins), tuple(tris), (offsets, positions, np.array(_sample_box.py_func(offsets), np.int64)),
-               tuple(fb), tuple(state), sampler, tuple(texels), map_sampler, tuple(map_texels), lights,
-               tuple(lighting))
+    # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
+    records = (tuple(bins), tuple(tris), tuple(samples), tuple(fb), tuple(state), sampler, tuple(texels), map_sampler,
+               tuple(map_texels), lights, tuple(lighting))
     n_shares = shares(pixels, n_threads)
     on_threads(lambda r: draw_tiles(*records, lane_buffers(len(offsets)), r, n_shares), n_shares)
 
@@ -879,8 +880,8 @@ def _row_pixels_1(start, end, py, corners, corner_colors, plane, positions, dept
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`),
 # keyed on the kernels' sources and those of the stages' kernels they inline
 # (`unorm8` and `blend_byte` of softras.pipeline.ops, `wrap_index` and
-# `ewa_texel` of softras.pipeline.texture, `_sample_box` of
-# softras.pipeline.rasterize, `ewa_ellipse` of softras.pipeline.texture_beyond).
-_SOURCES = sources_stamp(ops, texture, rasterize, libm, texture_beyond)
+# `ewa_texel` of softras.pipeline.texture, `ewa_ellipse` of
+# softras.pipeline.texture_beyond, and softras.pipeline.libm).
+_SOURCES = sources_stamp(ops, texture, libm, texture_beyond)
 _DRAW_TILES = {(n_samples, textured): _make_draw_tiles(n_samples, textured, _SOURCES)
                for textured, counts in DRIVER_SAMPLES.items() for n_samples in counts}

@@ -5,9 +5,9 @@ nothing else (`softras.pipeline.cache_key`), but the tile drivers
 (`softras.kernels.draw`) and the line kernel (`softras.kernels.lines`)
 inline kernels of every module of this folder and some of the stages'
 (`softras.pipeline.ops`, `softras.pipeline.texture`,
-`softras.pipeline.rasterize`, `softras.pipeline.libm`,
-`softras.pipeline.texture_beyond`, and for the line kernel
-`softras.pipeline.lines`), and the exact kernel
+`softras.pipeline.libm`, `softras.pipeline.texture_beyond`, and for the
+line kernel `softras.pipeline.lines` and `softras.pipeline.rasterize`),
+and the exact kernel
 (`softras.kernels.exact`) those of `softras.kernels.interpolate`,
 `softras.kernels.light` and `softras.kernels.texture`, and it calls the
 stages' (`softras.pipeline.rasterize`, `softras.pipeline.ops`,
