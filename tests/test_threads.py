@@ -70,3 +70,25 @@ def draw_scene() -> dict:
             "textures": {"checker": {"procedural": "checker", "size": [64, 64],
                                      "min_filter": "linear_mipmap_linear"}},
             "nodes": nodes}
+
+
+def test_a_scene_of_many_draws_in_batches_gives_the_stages_bytes(monkeypatch):
+    """Blended layers, a line draw after the third (the triangle draws
+    before it are drawn first), then more than a batch holds
+    (`draw.MAX_BATCH`), every batch cut into two shares: the stages' bytes."""
+    scene = draw_scene()
+    quad = scene["nodes"][0]["mesh"]
+    scene["nodes"] = [{"name": f"layer{k}", "mesh": quad, "translate": [0.03 * k - 0.3, 0.02 * k, 0.0],
+                       "scale": [0.5, 0.5, 1.0], "blend": "over", "depth_test": False,
+                       "material": {"color": [1, 0.1 * (k % 10), 0.2, 0.4], "texture": "checker" if k % 3 else None}}
+                      for k in range(draw.MAX_BATCH + 8)]
+    scene["nodes"].insert(3, {"name": "lines", "blend": "over", "depth_test": False,
+                              "mesh": {"primitive": "lines", "positions": [[-1, -0.8, 0], [1, 0.9, 0], [-1, 0.2, 0],
+                                                                          [1, 0.1, 0]], "indices": [[0, 1], [2, 3]]},
+                              "material": {"color": [0.1, 1, 0.3, 0.7]}})
+    scene = softras.load_scene(scene)
+    monkeypatch.setattr(draw, "SHARE_PIXELS", 0)
+    monkeypatch.setattr(draw.numba, "get_num_threads", lambda: 2)
+    for samples in (1, 4):
+        assert np.array_equal(softras.render(scene, samples=samples),
+                              softras.render(scene, samples=samples, fast_path=False)), f"{samples} samples"

@@ -20,7 +20,9 @@ naming the readable function it must equal:
 5. the tile driver (here: `_make_draw_tiles`, one per sample count and
    texturing): tiles in parallel (shares of the tiles on threads,
    `softras.kernels.threads`: a pixel belongs to one tile, so tiles never
-   race on the framebuffer); within a tile the triangles in
+   race on the framebuffer), for a batch of set-up draws at once
+   (`draw_batch`: one hand-off to the threads, each share drawing its
+   tiles of every draw in order); within a tile the triangles in
    draw order; per triangle the 8x8 blocks of its bounding box inside the
    tile with the exact early-out / early-in corner test of
    `softras.pipeline.rasterize` (`softras.kernels.rasterize`); the covered
@@ -225,18 +227,65 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
     else:
         clear_floats(color, depth, ops.premultiplied(scene.background))
         fb = Framebuffer(NO_WORDS, depth, color)
+    batch = []                          # set-up triangle draws not yet drawn (`TileWork`)
     for draw in ordered_draws(scene):
         if draw.mesh.primitive == "lines":
+            draw_batch(batch)           # (the triangle draws before the lines first)
+            batch.clear()
             draw_lines(scene, draw, fb, positions)
-        else:
-            draw_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter)
+            continue
+        work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter, len(batch))
+        if work is not None:
+            batch.append(work)
+        if len(batch) == MAX_BATCH:
+            draw_batch(batch)
+            batch.clear()
+    draw_batch(batch)
     return color
+
+
+# A triangle draw set up and binned, ready for its tile driver: the driver,
+# the records it takes (plain tuples, `softras.kernels.setup.Clipped`), the
+# sample count of its lanes (`lane_buffers`), and the pixels its
+# triangles' boxes cover (`_bin`).
+TileWork = namedtuple("TileWork", ["driver", "records", "n_samples", "pixels"])
+
+# At most this many triangle draws are set up before they are drawn: each
+# holds its own set-up buffers (`set_up_triangles`' slot) until then.
+MAX_BATCH = 16
+
+
+def draw_batch(batch: list) -> None:
+    """Draw the set-up triangle draws of ``batch`` (`TileWork`) in order, with
+    one hand-off to the threads for all of them: share r draws tiles r, r + n,
+    ... of each draw in turn.  A tile belongs to one share for the whole
+    batch, so its pixels see the draws in order on one thread: the bytes of
+    drawing them one by one."""
+    if not batch:
+        return
+    n_shares = shares(sum(work.pixels for work in batch), numba.get_num_threads())
+
+    def share(r):
+        for work in batch:
+            work.driver(*work.records, lane_buffers(work.n_samples), r, n_shares)
+
+    on_threads(share, n_shares)
 
 
 def draw_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None) -> None:
     """One triangle draw into the byte framebuffer fb (`softras.kernels.ops.Framebuffer`)
     at the pass's `Samples`: `softras.pipeline.render.draw_triangles` in gl
     precision (see the module docstring)."""
+    work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter)
+    draw_batch([work] if work is not None else [])
+
+
+def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None,
+                     slot: int = 0) -> TileWork | None:
+    """`draw_triangles` up to its tile driver: the draw's vertices, clipping,
+    set-up and binning, into this thread's set-up buffers of ``slot`` (the
+    draw's place in its batch, `draw_batch`).  None when no triangle is
+    visible."""
     offsets = samples.offsets
     mesh = draw.mesh
     width, height = scene.width, scene.height
@@ -246,7 +295,7 @@ def draw_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture
     clipped = Clipped(indices, *clip_stage.triangle_list_gl(clip_pos, indices))
     n = len(clipped.source)
     if n == 0:
-        return
+        return None
     n_threads = numba.get_num_threads()
     material = draw.material
     mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if material.bump_map is not None else NO_MAP
@@ -256,16 +305,20 @@ def draw_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture
     uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured(material)
            else np.zeros((0, 2)))
     world_normals, lights, lighting = phong_inputs(scene, draw) if lit else NO_LIGHTING
-    tris = Triangles(_scratch.take("tri_f", (n, _NF), np.float64), _scratch.take("tri_i", (n, _NI), np.int64),
-                     _scratch.take("bbox", (n, 4), np.int64), _scratch.take("colors", (n, 3, 4), np.float64),
-                     _scratch.take("uv", (n if textured(material) else 1, 3, 2), np.float64),
-                     _scratch.take("lit", (n, 3, world_normals.shape[1]) if lit else (1, 3, 6), np.float64))
+
+    def take(name, shape, dtype):       # (this slot's buffer)
+        return _scratch.take(f"{name}.{slot}", shape, dtype)
+
+    tris = Triangles(take("tri_f", (n, _NF), np.float64), take("tri_i", (n, _NI), np.int64),
+                     take("bbox", (n, 4), np.int64), take("colors", (n, 3, 4), np.float64),
+                     take("uv", (n if textured(material) else 1, 3, 2), np.float64),
+                     take("lit", (n, 3, world_normals.shape[1]) if lit else (1, 3, 6), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
     _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs, world_normals), tris, n_threads,
            _scratch)
     visible = np.flatnonzero(tris.i[:, _I_VIS])
     if len(visible) == 0:
-        return
+        return None
     flat = material.shading == "flat"
     if flat:                # (only the visible triangles are binned: the others' colours are never read)
         tris.colors[visible] = flat_corner_colors(scene, draw, base, clipped.source[visible])
@@ -294,20 +347,19 @@ def draw_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     records = (tuple(bins), tuple(tris), tuple(samples), tuple(fb), tuple(state), sampler, tuple(texels), map_sampler,
                tuple(map_texels), lights, tuple(lighting))
-    n_shares = shares(pixels, n_threads)
-    on_threads(lambda r: draw_tiles(*records, lane_buffers(len(offsets)), r, n_shares), n_shares)
+    return TileWork(draw_tiles, records, len(offsets), pixels)
 
 
-# A draw whose triangles' boxes cover fewer pixels than this is drawn on one
-# thread: handing a share to a second thread and waiting for it (~50 us
-# here) costs more than the share saves.  One quad on two threads against
+# A batch of draws whose triangles' boxes cover fewer pixels than this is
+# drawn on one thread: handing a share to a second thread and waiting for
+# it (~50 us here) costs more than the share saves.  One quad on two threads against
 # one, 512^2: even at 2 x 256^2 pixels of boxes, faster at 2 x 384^2
 # (docs/speed.md, "Thirty-third round").
 SHARE_PIXELS = 131072
 
 
 def shares(pixels: int, n_threads: int) -> int:
-    """How many threads draw a draw whose triangles' boxes cover ``pixels``
+    """How many threads draw a batch whose triangles' boxes cover ``pixels``
     pixels (`_bin`): n_threads, or one below SHARE_PIXELS."""
     return n_threads if pixels >= SHARE_PIXELS else 1
 
