@@ -419,6 +419,11 @@ MUTATIONS: tuple[Mutation, ...] = (
        "the tile driver's last share never runs on a thread of its own (its tiles stay clear)",
        E("softras/kernels/threads.py", "for r in range(1, n_threads)]", "for r in range(1, n_threads - 1)]"),
        (FAST, "tests/test_threads.py")),
+    _m("fast_batch_past_lines", "render order", "fast path",
+       "the triangle draws set up before a line draw are drawn after it (the batch is not drawn first)",
+       E("softras/kernels/draw.py", "            draw_batch(batch)           # (the triangle draws before the lines "
+         "first)\n            batch.clear()\n", ""),
+       (FAST, "tests/test_threads.py")),
     _m("fast_helper_lane_depth", "depth test", "fast path",
        "the depth test reads and writes back the depths of helper lanes (outside the picture at odd sizes)",
        (E("softras/kernels/ops.py", "            if li[_LI_COV, l] == 0:\n                li[_LI_PASS, l] = 0\n"
