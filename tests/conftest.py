@@ -56,14 +56,16 @@ def pytest_sessionstart(session):
         from softras.kernels import draw, prepare
 
         # Every variant: the tile drivers, exact precision's kernels and the
-        # line kernel.  Two workers: the textured drivers on one (they share
-        # the filters and maps they call, compiled once), the rest on the
-        # other (exact last, once the textured worker has cached
-        # `_beyond_texel`, which it shares), which then compiles the stages'
-        # loops too: ~160 s of one core each from a cold cache (docs/speed.md,
-        # "Twenty-seventh round").  More workers: every count-th variant.
-        shares = [[(1, False), (4, False), (0, False), prepare.LINES, prepare.EXACT],
-                  [(1, True), (0, True)]]
+        # line kernel.  Two workers: the textured drivers and exact (which
+        # calls the textured drivers' `_beyond_texel`, compiled once) on one,
+        # the untextured drivers and lines on the other, which then compiles
+        # the stages' loops too: ~130-140 s of one core each from a cold
+        # cache.  xdist hands out no test before both workers have collected,
+        # so the longer share is the whole wait (docs/speed.md,
+        # "Thirty-fourth round": 171 s against 100 s before exact moved).
+        # More workers: every count-th variant.
+        shares = [[(1, False), (4, False), (0, False), prepare.LINES],
+                  [(1, True), (0, True), prepare.EXACT]]
         variants = [variant for share in shares for variant in share]
         assert sorted(variants, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
                                                             key=prepare.name)
@@ -71,7 +73,7 @@ def pytest_sessionstart(session):
         mine = shares[index % 2] if count == 2 else variants[index % count::count]
         for variant in mine:
             prepare.prepare(variant)
-        if index == 0:                  # (two workers: the share that is ready ~40 s sooner)
+        if index == 0:                  # (two workers: the share that is ready ~20 s sooner)
             _compile_stage_loops()
     if not session.config.getoption("--update-golden", default=False):
         return
