@@ -56,16 +56,18 @@ def pytest_sessionstart(session):
         from softras.kernels import draw, prepare
 
         # Every variant: the tile drivers, exact precision's kernels and the
-        # line kernel.  Two workers: the textured drivers and exact (which
-        # calls the textured drivers' `_beyond_texel`, compiled once) on one,
-        # the untextured drivers and lines on the other, which then compiles
-        # the stages' loops too: ~130-140 s of one core each from a cold
-        # cache.  xdist hands out no test before both workers have collected,
-        # so the longer share is the whole wait (docs/speed.md,
-        # "Thirty-fourth round": 171 s against 100 s before exact moved).
+        # line kernel.  Two workers: exact and the textured drivers (which
+        # share `_beyond_texel`, compiled once) on one, the untextured
+        # drivers and lines on the other, which then compiles the stages'
+        # loops too (their spec bounds render in exact precision: exact
+        # first on the other worker, ready by then): ~125-140 s of one core
+        # each from a cold cache.  xdist hands out no test before both
+        # workers have collected, so the longer share is the whole wait
+        # (docs/speed.md, "Thirty-fourth round": 171 s, the textured
+        # worker idle for 73 s, when exact was on the untextured one).
         # More workers: every count-th variant.
         shares = [[(1, False), (4, False), (0, False), prepare.LINES],
-                  [(1, True), (0, True), prepare.EXACT]]
+                  [prepare.EXACT, (1, True), (0, True)]]
         variants = [variant for share in shares for variant in share]
         assert sorted(variants, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
                                                             key=prepare.name)
