@@ -37,6 +37,22 @@ def load_script(name: str):
 os.environ["SOFTRAS_COMPILE"] = "wait"
 
 
+# The test files whose tests take longest (--durations with a warm cache:
+# the whole CI workflow run locally 21 s, a hang waiting for its timeout
+# 11 s, softpipe's conformance 9 s, pytest in subprocesses 4-8 s each):
+# run first.  pytest-xdist hands the tests out in collection order, so a
+# long test collected last ran alone at the end while the other worker
+# idled (19.5 s of the fresh-clone run, docs/speed.md, "Thirty-fourth
+# round").
+SLOW_FILES = ("test_workflow.py", "test_runner.py", "test_conformance_softpipe.py", "test_pytest_plugin.py",
+              "test_merge.py", "test_numba_fixes.py")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The tests of `SLOW_FILES` first, every other test in its order."""
+    items.sort(key=lambda item: item.path.name not in SLOW_FILES)
+
+
 def pytest_addoption(parser):
     parser.addoption("--update-golden", action="store_true", default=False,
                      help="before the tests, re-render golden/ from glref: the same code as "
