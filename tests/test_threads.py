@@ -72,10 +72,12 @@ def draw_scene() -> dict:
             "nodes": nodes}
 
 
-def test_a_scene_of_many_draws_in_batches_gives_the_stages_bytes(monkeypatch):
+@pytest.mark.parametrize("batch_triangles", [draw.BATCH_TRIANGLES, 5])
+def test_a_scene_of_many_draws_in_batches_gives_the_stages_bytes(batch_triangles, monkeypatch):
     """Blended layers, a line draw after the third (the triangle draws
     before it are drawn first), then more than a batch holds
-    (`draw.MAX_BATCH`), every batch cut into two shares: the stages' bytes."""
+    (`draw.MAX_BATCH` draws, or `draw.BATCH_TRIANGLES` triangles: here
+    also 5, two quads), every batch cut into two shares: the stages' bytes."""
     scene = draw_scene()
     quad = scene["nodes"][0]["mesh"]
     scene["nodes"] = [{"name": f"layer{k}", "mesh": quad, "translate": [0.03 * k - 0.3, 0.02 * k, 0.0],
@@ -88,6 +90,7 @@ def test_a_scene_of_many_draws_in_batches_gives_the_stages_bytes(monkeypatch):
                               "material": {"color": [0.1, 1, 0.3, 0.7]}})
     scene = softras.load_scene(scene)
     monkeypatch.setattr(draw, "SHARE_PIXELS", 0)
+    monkeypatch.setattr(draw, "BATCH_TRIANGLES", batch_triangles)
     monkeypatch.setattr(draw.numba, "get_num_threads", lambda: 2)
     for samples in (1, 4):
         assert np.array_equal(softras.render(scene, samples=samples),

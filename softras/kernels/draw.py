@@ -227,19 +227,21 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
     else:
         clear_floats(color, depth, ops.premultiplied(scene.background))
         fb = Framebuffer(NO_WORDS, depth, color)
-    batch = []                          # set-up triangle draws not yet drawn (`TileWork`)
+    batch, queued = [], 0               # set-up triangle draws not yet drawn (`TileWork`), their mesh triangles
     for draw in ordered_draws(scene):
         if draw.mesh.primitive == "lines":
             draw_batch(batch)           # (the triangle draws before the lines first)
             batch.clear()
             draw_lines(scene, draw, fb, positions)
             continue
+        if batch and (len(batch) == MAX_BATCH or queued + len(draw.mesh.indices) > BATCH_TRIANGLES):
+            draw_batch(batch)
+            batch.clear()
+            queued = 0
         work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter, len(batch))
         if work is not None:
             batch.append(work)
-        if len(batch) == MAX_BATCH:
-            draw_batch(batch)
-            batch.clear()
+            queued += len(draw.mesh.indices)
     draw_batch(batch)
     return color
 
@@ -250,9 +252,14 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
 # triangles' boxes cover (`_bin`).
 TileWork = namedtuple("TileWork", ["driver", "records", "n_samples", "pixels"])
 
-# At most this many triangle draws are set up before they are drawn: each
-# holds its own set-up buffers (`set_up_triangles`' slot) until then.
+# At most this many triangle draws are set up before they are drawn, and
+# no more mesh triangles than BATCH_TRIANGLES unless one draw has more
+# (it is then drawn alone): each draw holds its own set-up buffers
+# (`set_up_triangles`' slot, ~500 bytes a triangle) until then.  The
+# batches are for the small draws, whose hand-off to the threads costs as
+# much as drawing them; a large draw gains nothing from sharing one.
 MAX_BATCH = 16
+BATCH_TRIANGLES = 8192
 
 
 def draw_batch(batch: list) -> None:
@@ -283,8 +290,11 @@ def draw_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture
 def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None,
                      slot: int = 0) -> TileWork | None:
     """`draw_triangles` up to its tile driver: the draw's vertices, clipping,
-    set-up and binning, into this thread's set-up buffers of ``slot`` (the
-    draw's place in its batch, `draw_batch`).  None when no triangle is
+    set-up and binning, into set-up buffers for ``slot`` (the draw's place
+    in its batch, `draw_batch`): this thread's reused ones for the first,
+    fresh ones for the others (fewer than BATCH_TRIANGLES triangles in
+    all; reused buffers for each slot would keep the largest draw ever
+    batched there for the life of the process).  None when no triangle is
     visible."""
     offsets = samples.offsets
     mesh = draw.mesh
@@ -307,7 +317,7 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     world_normals, lights, lighting = phong_inputs(scene, draw) if lit else NO_LIGHTING
 
     def take(name, shape, dtype):       # (this slot's buffer)
-        return _scratch.take(f"{name}.{slot}", shape, dtype)
+        return _scratch.take(name, shape, dtype) if slot == 0 else np.empty(shape, dtype)
 
     tris = Triangles(take("tri_f", (n, _NF), np.float64), take("tri_i", (n, _NI), np.int64),
                      take("bbox", (n, 4), np.int64), take("colors", (n, 3, 4), np.float64),
