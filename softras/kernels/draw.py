@@ -232,6 +232,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
         if draw.mesh.primitive == "lines":
             draw_batch(batch)           # (the triangle draws before the lines first)
             batch.clear()
+            queued = 0
             draw_lines(scene, draw, fb, positions)
             continue
         if batch and (len(batch) == MAX_BATCH or queued + len(draw.mesh.indices) > BATCH_TRIANGLES):
@@ -279,18 +280,12 @@ def draw_batch(batch: list) -> None:
     on_threads(share, n_shares)
 
 
-def draw_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None) -> None:
-    """One triangle draw into the byte framebuffer fb (`softras.kernels.ops.Framebuffer`)
-    at the pass's `Samples`: `softras.pipeline.render.draw_triangles` in gl
-    precision (see the module docstring)."""
-    work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter)
-    draw_batch([work] if work is not None else [])
-
-
 def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None,
                      slot: int = 0) -> TileWork | None:
-    """`draw_triangles` up to its tile driver: the draw's vertices, clipping,
-    set-up and binning, into set-up buffers for ``slot`` (the draw's place
+    """`softras.pipeline.render.draw_triangles` in gl precision (see the
+    module docstring) up to the tile driver, for one triangle draw into the
+    `softras.kernels.ops.Framebuffer` fb at the pass's `Samples`: the
+    draw's vertices, clipping, set-up and binning, into set-up buffers for ``slot`` (the draw's place
     in its batch, `draw_batch`): this thread's reused ones for the first,
     fresh ones for the others (fewer than BATCH_TRIANGLES triangles in
     all; reused buffers for each slot would keep the largest draw ever
@@ -316,7 +311,7 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
            else np.zeros((0, 2)))
     world_normals, lights, lighting = phong_inputs(scene, draw) if lit else NO_LIGHTING
 
-    def take(name, shape, dtype):       # (this slot's buffer)
+    def take(name, shape, dtype):       # (slot 0: this thread's reused buffers)
         return _scratch.take(name, shape, dtype) if slot == 0 else np.empty(shape, dtype)
 
     tris = Triangles(take("tri_f", (n, _NF), np.float64), take("tri_i", (n, _NI), np.int64),
