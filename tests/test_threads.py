@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import softras
+from conftest import SCENES
 from softras.kernels import draw, threads
 
 
@@ -95,3 +96,27 @@ def test_a_scene_of_many_draws_in_batches_gives_the_stages_bytes(batch_triangles
     for samples in (1, 4):
         assert np.array_equal(softras.render(scene, samples=samples),
                               softras.render(scene, samples=samples, fast_path=False)), f"{samples} samples"
+
+
+def test_the_drivers_read_no_lane_they_have_not_written(monkeypatch):
+    """A share's lanes are carried from draw to draw of a batch
+    (`draw.draw_batch`): drawn with lanes full of junk, the textured and
+    untextured scenes of this file at each driver's sample count give
+    the bytes of zeroed lanes."""
+    zeroed = draw.lane_buffers
+
+    def junk(n_samples):
+        lanes = zeroed(n_samples)
+        for rows, value in zip(lanes, (1.2345e300, -7, 0xDEADBEEF, np.nan, -3)):
+            rows[...] = value
+        return lanes
+
+    scenes = [softras.load_scene(draw_scene()), softras.load_scene(SCENES / "blend_equations.json"),
+              softras.load_scene(SCENES / "bump_mapped_plane.json")]
+    for samples, pattern in [(1, "gl"), (4, "gl"), (8, "halton")]:
+        for scene in scenes:
+            monkeypatch.setattr(draw, "lane_buffers", zeroed)
+            expected = softras.render(scene, samples=samples, pattern=pattern)
+            monkeypatch.setattr(draw, "lane_buffers", junk)
+            assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), expected), \
+                f"{samples} samples"

@@ -274,8 +274,13 @@ def draw_batch(batch: list) -> None:
     n_shares = shares(sum(work.pixels for work in batch), numba.get_num_threads())
 
     def share(r):
+        # One share's lanes for the whole batch (one pass: one sample count),
+        # carried from draw to draw as from block to block within a draw:
+        # the drivers write every lane they read (tests/test_threads.py
+        # draws with lanes full of junk).
+        lanes = lane_buffers(batch[0].n_samples)
         for work in batch:
-            work.driver(*work.records, lane_buffers(work.n_samples), r, n_shares)
+            work.driver(*work.records, lanes, r, n_shares)
 
     on_threads(share, n_shares)
 
@@ -370,8 +375,8 @@ def shares(pixels: int, n_threads: int) -> int:
 
 
 def lane_buffers(n_samples: int) -> LaneBuffers:
-    """A share's `LaneBuffers` for a draw of n_samples samples a pixel
-    (`softras.kernels.lanes`), zeroed."""
+    """A share's `LaneBuffers` for a batch of draws of n_samples samples a
+    pixel (`softras.kernels.lanes`), zeroed."""
     return LaneBuffers(np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64),
                        np.zeros((8, LANES), np.uint64), np.empty((2, 4)), np.zeros((3, n_samples), np.int64))
 
