@@ -1,6 +1,8 @@
 """The tile drivers' shares on threads (softras.kernels.threads): every share
-runs once, an error reaches the caller after every share has ended, and a
-draw cut into shares gives the bytes of the same draw in one share."""
+runs once, an error reaches the caller after every share has ended, a
+draw cut into shares gives the bytes of the same draw in one share, a
+scene drawn in batches of draws the stages' bytes, and a share's lanes
+may hold anything when a draw begins."""
 
 from __future__ import annotations
 

@@ -227,31 +227,29 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
     else:
         clear_floats(color, depth, ops.premultiplied(scene.background))
         fb = Framebuffer(NO_WORDS, depth, color)
-    batch, queued = [], 0               # set-up triangle draws not yet drawn (`TileWork`), their mesh triangles
+    batch = []                          # set-up triangle draws not yet drawn (`TileWork`)
     for draw in ordered_draws(scene):
-        if draw.mesh.primitive == "lines":
-            draw_batch(batch)           # (the triangle draws before the lines first)
-            batch.clear()
-            queued = 0
+        lines = draw.mesh.primitive == "lines"
+        # (Before a line draw, the triangle draws before it.)
+        if batch and (lines or len(batch) == MAX_BATCH
+                      or sum(work.triangles for work in batch) + len(draw.mesh.indices) > BATCH_TRIANGLES):
+            draw_batch(batch)
+            batch = []
+        if lines:
             draw_lines(scene, draw, fb, positions)
             continue
-        if batch and (len(batch) == MAX_BATCH or queued + len(draw.mesh.indices) > BATCH_TRIANGLES):
-            draw_batch(batch)
-            batch.clear()
-            queued = 0
         work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter, len(batch))
         if work is not None:
             batch.append(work)
-            queued += len(draw.mesh.indices)
     draw_batch(batch)
     return color
 
 
 # A triangle draw set up and binned, ready for its tile driver: the driver,
 # the records it takes (plain tuples, `softras.kernels.setup.Clipped`), the
-# sample count of its lanes (`lane_buffers`), and the pixels its
-# triangles' boxes cover (`_bin`).
-TileWork = namedtuple("TileWork", ["driver", "records", "n_samples", "pixels"])
+# sample count of its lanes (`lane_buffers`), the pixels its triangles'
+# boxes cover (`_bin`), and its mesh's triangles (`BATCH_TRIANGLES`).
+TileWork = namedtuple("TileWork", ["driver", "records", "n_samples", "pixels", "triangles"])
 
 # At most this many triangle draws are set up before they are drawn, and
 # no more mesh triangles than BATCH_TRIANGLES unless one draw has more
@@ -357,7 +355,7 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     records = (tuple(bins), tuple(tris), tuple(samples), tuple(fb), tuple(state), sampler, tuple(texels), map_sampler,
                tuple(map_texels), lights, tuple(lighting))
-    return TileWork(draw_tiles, records, len(offsets), pixels)
+    return TileWork(draw_tiles, records, len(offsets), pixels, len(mesh.indices))
 
 
 # A batch of draws whose triangles' boxes cover fewer pixels than this is

@@ -45,8 +45,8 @@ LANES = 64                                   # 16 quads of an 8x8 block
 (_LI_PX, _LI_PY, _LI_COV, _LI_PASS, _LI_BASE, _LI_LW, _LI_LH, _LI_W8, _LI_LEVEL, _LI_IMGF, _LI_TWO,
  _LI_ADDR, _LI_FRAC8, _LI_WORD, _LI_DST, _LI_PIX, _LI_Z) = 0, 1, 2, 3, 4, 6, 8, 10, 11, 13, 14, 15, 23, 27, 28, 29, 30
 
-# A share's lane buffers (allocated per draw for each share of the tile
-# driver, `softras.kernels.draw.lane_buffers`): the float64 rows lf (_NLF,
+# A share's lane buffers (allocated per batch of draws for each share of
+# the tile drivers, `softras.kernels.draw.lane_buffers`): the float64 rows lf (_NLF,
 # 2 * LANES), the int64 rows li (_LI_Z + samples, 2 * LANES), the 8 fetched
 # texels per lane spread into 16-bit lanes lu (8, LANES) uint64, the scalar
 # float filter's two levels' RGBA texel (2, 4) and a pixel row's edge

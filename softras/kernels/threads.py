@@ -11,8 +11,9 @@ copy propagation over the whole inlined body, the loop body outlined and
 compiled again) were half of a driver's compile (the textured one-sample
 driver 143 -> 72 s, docs/speed.md, "Thirty-third round").  The price: a
 share handed to a pool thread and waited for costs ~50 us here, where
-numba's own threads start a loop in ~2 us when they are awake (so small
-draws take one share, `softras.kernels.draw.SHARE_PIXELS`).  A parallel
+numba's own threads start a loop in ~2 us when they are awake (so the
+shares of a batch of draws are handed over once, `softras.kernels.draw.draw_batch`,
+and a small batch takes one share, `softras.kernels.draw.SHARE_PIXELS`).  A parallel
 loop that calls the shares as functions of their own compiled little
 less (numba optimises a callee again in each caller).
 """
