@@ -3,10 +3,12 @@
 What is measured
 ----------------
 Every figure is taken in one process, warm (one untimed render first, so
-kernels are compiled and caches filled), as the median of ``runs`` timed
-renders, with glref timed on the same scene in the same run, so the ratios
-are comparable on a noisy machine.  glref renders at the level's sample
-count where GL has it (``gl_msaa4`` on a 1-sample scene is timed against
+kernels are compiled and caches filled), as the median of timed renders,
+each softras render paired with a glref render of the same scene, the two
+interleaved (`_paired_times`: at least ``runs`` pairs, and `MIN_PAIRS`
+where they fit in `PAIR_BUDGET` seconds), so that both see the same state
+of a noisy machine and their ratio compares like with like.  glref
+renders at the level's sample count where GL has it (``gl_msaa4`` on a 1-sample scene is timed against
 glref's 4x MSAA), else at the scene's own (exact and softras's own
 patterns: "gl ms" is then the scene's GL render, a reference point, not the
 same work).  A render is timed end to end from the
@@ -18,8 +20,7 @@ the gl level (`E2E_LEVEL`) each row also carries ``file_seconds`` and
 and of ``softras.render(load_scene(path), backend="gl")`` on the scene written
 to a temporary JSON file (parsing, procedural meshes and textures, mip chains
 and every upload included: the shared scene layer does the same work for
-both renderers), and ``file_ratio``; these take interleaved pairs, at least
-`E2E_MIN_PAIRS` of them where they fit in `E2E_BUDGET` seconds.
+both renderers), and ``file_ratio``, from interleaved pairs too.
 
 Error is measured against one ground truth that favours no level
 (`truth_image`): the scene supersampled in exact precision with the texture
@@ -192,14 +193,27 @@ def scenes(full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2
 # ----------------------------------------------------------------------------- measuring
 
 
-def _median_time(fn, runs: int) -> tuple[float, object]:
-    result = fn()                      # warm: kernels compiled, caches filled
-    times = []
-    for _ in range(runs):
+def _paired_times(soft, gl, runs: int) -> tuple[float, float, object]:
+    """Median seconds of the calls ``soft()`` and ``gl()`` taken in
+    interleaved pairs after one untimed pair (kernels compiled, caches
+    filled): at least ``runs`` pairs, more up to `MIN_PAIRS` while they fit
+    in `PAIR_BUDGET` seconds.  Returns (soft median, gl median, the last
+    result of ``soft``)."""
+    soft_times, gl_times = [], []
+    pair, begin = 0, None
+    while pair <= runs or (pair <= MIN_PAIRS and time.perf_counter() - begin < PAIR_BUDGET):
         start = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), result
+        result = soft()
+        middle = time.perf_counter()
+        gl()
+        end = time.perf_counter()
+        if pair:                                    # pair 0 warms
+            soft_times.append(middle - start)
+            gl_times.append(end - middle)
+        else:
+            begin = end
+        pair += 1
+    return statistics.median(soft_times), statistics.median(gl_times), result
 
 
 def _peak_mib(fn) -> float:
@@ -257,7 +271,6 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
     scene = softras.load_scene(scene_dict)
     triangles = sum(len(d.mesh.indices) for d in scene.draws)
     pixels = scene.width * scene.height
-    gl_times = {(None, None): _median_time(lambda: softras.render(scene, backend="gl"), runs)[0]}
     truth = truth_image(scene) if errors and truth_factor(scene) >= 2 else None
     rows = []
     for level in levels:
@@ -269,15 +282,13 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
         gl_samples = level.options.get("samples")
         if level.options.get("pattern") not in (None, "gl") or gl_samples == scene.samples:
             gl_samples = None
-        gl_key = (gl_samples, level.options.get("framebuffer"))
-        if gl_key not in gl_times:
-            gl_times[gl_key] = _median_time(
-                lambda: softras.render(scene, backend="gl", samples=gl_key[0], framebuffer=gl_key[1]), runs)[0]
-        gl_seconds = gl_times[gl_key]
+        framebuffer = level.options.get("framebuffer")
         try:
-            seconds, image = _median_time(lambda: softras.render(scene, **level.options), runs)
+            seconds, gl_seconds, image = _paired_times(
+                lambda: softras.render(scene, **level.options),
+                lambda: softras.render(scene, backend="gl", samples=gl_samples, framebuffer=framebuffer), runs)
         except (TypeError, ValueError, NotImplementedError) as error:
-            rows.append(Row(name, triangles, pixels, level.name, None, gl_seconds, None, None, None, None,
+            rows.append(Row(name, triangles, pixels, level.name, None, None, None, None, None, None,
                             None, None, _rss_mib(), note=f"n/a: {error}"))
             continue
         peak = _peak_mib(lambda: softras.render(scene, **level.options)) if memory else None
@@ -295,13 +306,16 @@ def measure(name: str, scene_dict: dict, runs: int, levels=None, *, errors: bool
     return rows
 
 
-# The from-file figures are the headline (what a user waits for): at least E2E_MIN_PAIRS
-# interleaved (softras, glref) pairs while they fit in E2E_BUDGET seconds
-# (``runs`` pairs in any case).  On a noisy 2-core machine a median of 3 or 5
-# pairs of ~6 ms renders moves by +-10 % from one run to the next; of 21, by
-# about +-3 %.
-E2E_MIN_PAIRS = 21
-E2E_BUDGET = 1.5
+# Every softras figure is a median of renders interleaved with glref's
+# (`_paired_times`): at least MIN_PAIRS pairs while they fit in PAIR_BUDGET
+# seconds (``runs`` pairs in any case).  On a noisy 2-core machine a median
+# of 3 or 5 pairs of ~6 ms renders moves by +-10 % from one run to the next;
+# of 21, by about +-3 %.  Timed apart (glref's median first, then
+# softras's), the two medians saw different spells of the machine: glref's
+# own time for one scene moved between 4.1 and 7.2 ms across runs
+# (docs/speed.md, thirty-fifth round).
+MIN_PAIRS = 21
+PAIR_BUDGET = 1.5
 
 
 @contextlib.contextmanager
@@ -318,23 +332,12 @@ def _scene_file(scene_dict: dict):
 
 def _file_times(scene_dict: dict, options: dict, runs: int) -> tuple[float, float]:
     """Median seconds from the scene file to the image: (softras, glref),
-    interleaved pairs (``runs`` of them, more up to `E2E_MIN_PAIRS` when they
-    fit in `E2E_BUDGET`)."""
+    interleaved pairs (`_paired_times`)."""
     import softras
-    backends = {"soft": options, "gl": {"backend": "gl"}}
-    times = {name: [] for name in backends}
-    run, begin = 0, None
     with _scene_file(scene_dict) as path:
-        while run <= runs or (run <= E2E_MIN_PAIRS and time.perf_counter() - begin < E2E_BUDGET):
-            for name, render_options in backends.items():
-                start = time.perf_counter()
-                softras.render(softras.load_scene(path), **render_options)
-                if run:                                 # run 0 warms
-                    times[name].append(time.perf_counter() - start)
-            if not run:
-                begin = time.perf_counter()
-            run += 1
-    return statistics.median(times["soft"]), statistics.median(times["gl"])
+        soft, gl, _ = _paired_times(lambda: softras.render(softras.load_scene(path), **options),
+                                    lambda: softras.render(softras.load_scene(path), backend="gl"), runs)
+    return soft, gl
 
 
 LOADER_GRIDS = (110, 224)     # explicit-array grids of the loader figure: 24k and 100k triangles

@@ -946,7 +946,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "error against one filter-independent truth (exact precision, bilinear level-0 "
                     "texels, dense supersampling), peak memory, plus how cost grows.",
     )
-    bench.add_argument("--runs", type=int, default=3, help="timed runs per figure (median; default 3)")
+    bench.add_argument("--runs", type=int, default=3,
+                       help="timed (softras, glref) pairs per figure, at least (medians; default 3)")
     size = bench.add_mutually_exclusive_group()
     size.add_argument("--quick", dest="full", action="store_false", default=False,
                       help="the default subset: 512^2 scenes, sweeps to 100k triangles and 1024^2 (minutes)")
