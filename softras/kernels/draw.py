@@ -309,10 +309,14 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if material.bump_map is not None else NO_MAP
     map_name = material.normal_map if material.normal_map is not None else material.bump_map
     lit = material.shading == "phong"
-    base = base_colors(scene, draw)                                          # straight, per vertex
-    uvs = (np.ascontiguousarray(mesh.uvs.astype(np.float32).astype(np.float64)) if textured(material)
-           else np.zeros((0, 2)))
-    world_normals, lights, lighting = phong_inputs(scene, draw) if lit else NO_LIGHTING
+    # The per-vertex inputs in this thread's reused buffers too: the set-up
+    # copies them to the corners, and each draw's set-up is done before the next.
+    base = base_colors(scene, draw, _scratch.take)                          # straight, per vertex
+    uvs = np.zeros((0, 2))
+    if textured(material):
+        uvs = _scratch.take("uvs", mesh.uvs.shape, np.float64)
+        uvs[:] = mesh.uvs.astype(np.float32)
+    world_normals, lights, lighting = phong_inputs(scene, draw, _scratch.take) if lit else NO_LIGHTING
 
     def take(name, shape, dtype):       # (slot 0: this thread's reused buffers)
         return _scratch.take(name, shape, dtype) if slot == 0 else np.empty(shape, dtype)

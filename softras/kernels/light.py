@@ -43,19 +43,28 @@ _L_VECTOR, _L_COLOR, _NL = 0, 4, 7
 NO_LIGHTING = (np.zeros((0, 6)), np.zeros((0, _NL)), Lighting(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 
 
-def phong_inputs(scene, draw) -> tuple[np.ndarray, np.ndarray, Lighting]:
+def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:
+    """A new array (the default ``take`` of `phong_inputs` and `base_colors`)."""
+    return np.empty(shape, dtype)
+
+
+def phong_inputs(scene, draw, take=_fresh) -> tuple[np.ndarray, np.ndarray, Lighting]:
     """What a Phong-shaded triangle draw's kernels read: per vertex the
     world position and the (not unit) world normal (V, 6) float64, the
     inputs of `softras.pipeline.render.phong_attributes`, and for a normal
     or bump map the world tangent and handedness after them (V, 10,
     `softras.pipeline.vertex.world_tangents`) (the set-up takes them to the
-    corners), and the scene's `light_table` and `Lighting`."""
+    corners), and the scene's `light_table` and `Lighting`.  The (V, 6 or
+    10) array comes from ``take(name, shape, dtype)``: the tile drivers'
+    set-up passes a thread's reused buffers (`softras.kernels.scratch`)."""
     mesh, material = draw.mesh, draw.material
-    columns = [vertex.world_positions(mesh.positions, draw.world),
-               vertex.world_normals(mesh.normals, draw.world, unit=False)]
-    if material.normal_map is not None or material.bump_map is not None:
-        columns.append(vertex.world_tangents(mesh.tangents, draw.world))
-    return (np.ascontiguousarray(np.concatenate(columns, axis=1)), *scene_lighting(scene, material))
+    mapped = material.normal_map is not None or material.bump_map is not None
+    out = take("phong_inputs", (len(mesh.positions), 10 if mapped else 6), np.float64)
+    out[:, :3] = vertex.world_positions(mesh.positions, draw.world)
+    out[:, 3:6] = vertex.world_normals(mesh.normals, draw.world, unit=False)
+    if mapped:
+        out[:, 6:] = vertex.world_tangents(mesh.tangents, draw.world)
+    return (out, *scene_lighting(scene, material))
 
 
 def scene_lighting(scene, material) -> tuple[np.ndarray, Lighting]:
@@ -275,14 +284,19 @@ def _make_lighting_loops(sources: str):
 _vertex_lighting, _face_lighting = _make_lighting_loops(sources_stamp(libm))
 
 
-def base_colors(scene, draw) -> np.ndarray:
+def base_colors(scene, draw, take=_fresh) -> np.ndarray:
     """`softras.pipeline.render.vertex_base_colors` (V, 4) float64, Gouraud's
-    lighting by `_vertex_lighting`: the same bits."""
-    material = draw.material
-    base = np.ascontiguousarray(render.vertex_colors(draw.mesh) * material.color)
+    lighting by `_vertex_lighting`: the same bits.  Its arrays come from
+    ``take(name, shape, dtype)`` (as in `phong_inputs`)."""
+    material, mesh = draw.material, draw.mesh
+    base = take("base_colors", (len(mesh.positions), 4), np.float64)
+    if mesh.colors is None:                 # (`softras.pipeline.render.vertex_colors`: opaque white)
+        base[:] = np.ones(4) * material.color
+    else:
+        np.multiply(mesh.colors, material.color, out=base)
     if material.shading != "gouraud":
         return base
-    out = np.empty_like(base)
+    out = take("lit_base_colors", base.shape, np.float64)
     table, lighting = scene_lighting(scene, material)
     _vertex_lighting(base, np.ascontiguousarray(vertex.world_positions(draw.mesh.positions, draw.world)),
                      np.ascontiguousarray(vertex.world_normals(draw.mesh.normals, draw.world, unit=False)),
