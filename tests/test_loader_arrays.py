@@ -128,3 +128,47 @@ def test_numpy_arrays_from_python_load_like_lists():
         {"positions": positions.tolist(), "indices": indices.tolist()})
     assert _load({"positions": positions, "indices": np.array([[0, 1, 3]], np.uint16)}) == (
         "nodes[0].mesh.indices[0]: index 3 out of range for 3 positions")
+
+
+def test_loading_a_file_pauses_the_garbage_collector_and_restores_it(tmp_path, monkeypatch):
+    """A scene file is parsed and built with the cyclic garbage collector
+    off (`parse._collector_paused`: its ~100k lists for a 24k-triangle mesh
+    would start dozens of collections), and the collector is left as it was:
+    on, off, or on after a file that fails to load."""
+    import gc
+    import json
+
+    from softras import bench
+    path = tmp_path / "grid.json"
+    path.write_text(json.dumps(bench.explicit_grid_scene(110)))
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"softras_scene": 1, "width": 4, "height": 4, "nodes": [{"mesh": {"positions": [[0, 0]]}}]}')
+    runs, seen = [], []
+
+    def count(phase, info):
+        if phase == "start":
+            runs.append(info["generation"])
+
+    def build(data, **options):         # the parsed document on its way to the scene
+        seen.append((gc.isenabled(), len(runs)))
+        scene = real_build(data, **options)
+        seen.append((gc.isenabled(), len(runs)))
+        return scene
+    real_build = parse.scene_from_dict
+    monkeypatch.setattr(parse, "scene_from_dict", build)
+    gc.callbacks.append(count)
+    try:
+        gc.collect()
+        runs.clear()
+        assert len(parse.load_scene(path).draws[0].mesh.indices) == 24200
+        assert seen == [(False, 0), (False, 0)] and gc.isenabled()
+        gc.disable()
+        parse.load_scene(path)
+        assert not gc.isenabled()
+        gc.enable()
+        with pytest.raises(SceneError):
+            parse.load_scene(broken)
+        assert gc.isenabled()
+    finally:
+        gc.callbacks.remove(count)
+        gc.enable()

@@ -47,7 +47,9 @@ the keys; the records are in `softras.scene.model`).
 
 from __future__ import annotations
 
+import contextlib
 import difflib
+import gc
 import itertools
 import json
 import math
@@ -936,8 +938,29 @@ def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
         path = os.fspath(source)
         if path.lower().endswith(gltf.SUFFIXES):         # a glTF file is a whole scene (docs/gltf.md)
             return gltf.load_gltf_scene(path)
-        data = _read_json(path)
-        if not isinstance(data, dict):
-            raise SceneError(path, f"the top level must be a JSON object, got {type_name(data)}")
-        return scene_from_dict(data, source=path, base_dir=os.path.dirname(os.path.abspath(path)))
+        with _collector_paused():
+            data = _read_json(path)
+            if not isinstance(data, dict):
+                raise SceneError(path, f"the top level must be a JSON object, got {type_name(data)}")
+            return scene_from_dict(data, source=path, base_dir=os.path.dirname(os.path.abspath(path)))
     raise SceneError("scene", f"expected a file path, a dict or a Scene, got {type(source).__name__}")
+
+
+@contextlib.contextmanager
+def _collector_paused():
+    """Python's cyclic garbage collector off for the block (as it was
+    before afterwards).  A scene file's arrays parse into one list per
+    vertex and per triangle (100k containers for a 24k-triangle mesh), each
+    of which counts towards the collector's next run; in a process holding
+    many objects (after renders, with glref's and numba's) those runs
+    traversed them all, again and again: load_scene of the bench's 24k
+    grid took 98-105 ms there against 44 ms in a fresh process
+    (docs/speed.md, thirty-fifth round).  The parsed document holds no
+    cycles: refcounting frees it."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
