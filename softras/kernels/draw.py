@@ -101,7 +101,7 @@ from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _ed
                                        _list_row, _list_whole_block, _row_run, _tile_box)
 from softras.kernels.rgba32f import _float_fragments
 from softras.kernels.scratch import _Scratch, read_only
-from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _I_VIS, _NF, _NI, CULL_CODES, Clipped,
+from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, Clipped,
                                    Triangles, _setup)
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.threads import NoAliasCompiler, on_threads
@@ -304,7 +304,6 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     n = len(clipped.source)
     if n == 0:
         return None
-    n_threads = numba.get_num_threads()
     material = draw.material
     mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if material.bump_map is not None else NO_MAP
     map_name = material.normal_map if material.normal_map is not None else material.bump_map
@@ -326,9 +325,10 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
                      take("uv", (n if textured(material) else 1, 3, 2), np.float64),
                      take("lit", (n, 3, world_normals.shape[1]) if lit else (1, 3, 6), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
-    _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs, world_normals), tris, n_threads,
-           _scratch)
-    visible = np.flatnonzero(tris.i[:, _I_VIS])
+    _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs, world_normals), tris, _scratch)
+    tiles_x = (width + TILE - 1) // TILE
+    tiles_y = (height + TILE - 1) // TILE
+    visible, bin_start, bin_tri, pixels = _bin(tris.i, tris.bbox, tiles_x, tiles_y)
     if len(visible) == 0:
         return None
     flat = material.shading == "flat"
@@ -342,9 +342,6 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
                            else texture_tables(tex, texture_fixed_point))
     map_sampler, map_texels = (texture_tables(texture.prepare(scene.textures[map_name]), texture_fixed_point)
                                if map_name is not None else NO_TEXTURE)
-    tiles_x = (width + TILE - 1) // TILE
-    tiles_y = (height + TILE - 1) // TILE
-    bin_start, bin_tri, pixels = _bin(visible, tris.bbox, tiles_x, tiles_y)
     bins = Bins(bin_start, bin_tri, tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     cutoff = material.alpha_cutoff

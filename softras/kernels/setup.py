@@ -54,7 +54,7 @@ Clipped = namedtuple("Clipped", ["indices", "source", "slot", "fan_clip", "fan_w
 Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit"])
 
 
-def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, n_threads, scratch):
+def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, scratch):
     """`softras.pipeline.setup.setup_triangles` (gl precision) of the clipped
     triangles (`_setup_range`): in one call, or in parallel chunks from
     PARALLEL_SETUP triangles (read at call time).  clip_pos : the mesh's
@@ -72,7 +72,7 @@ def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris,
     if len(clipped.source) < PARALLEL_SETUP:
         _setup_range(0, len(clipped.source), *args)
     else:
-        _setup_chunks(*args, 4 * n_threads)
+        _setup_chunks(*args, 4 * numba.get_num_threads())     # (asked only here: 3.6 us a call)
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
