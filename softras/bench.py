@@ -68,11 +68,13 @@ The loader
 ``loader`` (`loader_times`): the median time of ``softras.load_scene`` on a
 scene whose mesh is written out as explicit arrays (the 24k- and
 100k-triangle grids, `explicit_grid_scene`), against ``json.load`` of the
-same file, interleaved, each after a full garbage collection (so that
-neither pays for the collector's runs over the objects that earlier
-renders left: in a long bench run those once took json.load from 31 to 88
-ms), and their ratio: what validation and conversion cost beyond reading
-the JSON at all.
+same file, interleaved, each after a full garbage collection and both
+without the collector's runs (load_scene pauses it while it parses,
+`softras.scene.parse._collector_paused`; json.load is timed with it
+paused too: its runs over the objects that earlier renders left took
+json.load of the 100k grid from 250 to 465 ms in one bench run), and
+their ratio: what validation and conversion cost beyond reading the JSON
+at all.
 """
 
 from __future__ import annotations
@@ -369,11 +371,15 @@ def loader_times(cols: int, runs: int = LOADER_RUNS) -> dict:
     json_s, load_s = [], []
     with _scene_file(explicit_grid_scene(cols)) as path:
         for _ in range(runs):
-            gc.collect()                # (each from the same state of the garbage collector)
-            start = time.perf_counter()
-            with open(path, encoding="utf-8") as file:
-                json.load(file)
-            json_s.append(time.perf_counter() - start)
+            gc.collect()                # (each from the same state of the garbage collector,
+            gc.disable()                # and json.load as load_scene parses: without its runs)
+            try:
+                start = time.perf_counter()
+                with open(path, encoding="utf-8") as file:
+                    json.load(file)
+                json_s.append(time.perf_counter() - start)
+            finally:
+                gc.enable()
             gc.collect()
             start = time.perf_counter()
             scene = softras.load_scene(path)
