@@ -430,6 +430,33 @@ def test_perturbed_normals_are_the_stages_to_the_bit():
     assert same.all(), f"{int((~same.all(axis=1)).sum())} normals differ, first {np.argwhere(~same)[0]}"
 
 
+def test_world_attributes_are_the_stages_to_the_bit():
+    """`k_light._world_attributes` (the Phong inputs of the compiled set-up)
+    writes the float64 bits of `vertex.world_positions` and
+    `vertex.world_normals` (not unit): random world matrices (a mirror, zero
+    entries of both signs), positions and normals with zeros of both signs,
+    NaN and infinities."""
+    rng = np.random.default_rng(14)
+    n = 3000
+    for trial in range(4):
+        world = np.eye(4)
+        world[:3] = rng.normal(size=(3, 4)) * rng.choice([0.0, -0.0, 1.0, 1.0, 1.0], (3, 4))
+        world[:3, :3] += np.eye(3) * (trial + 1)                   # (invertible)
+        if trial == 1:
+            world[0] *= -1.0                                       # a mirror
+        positions = rng.normal(size=(n, 3)) * rng.choice([0.0, -0.0, 1.0, 1e300], (n, 3))
+        normals = rng.normal(size=(n, 3)) * rng.choice([0.0, -0.0, 1.0], (n, 3))
+        positions[:5, 0], normals[5:10, 1] = np.nan, np.inf
+        out = np.empty((n, 6))
+        with np.errstate(all="ignore"):
+            expected = np.concatenate([vertex.world_positions(positions, world),
+                                       vertex.world_normals(normals, world, unit=False)], axis=1)
+        fresh(k_light._world_attributes)(positions, np.ascontiguousarray(world[:3]), normals,
+                                         vertex.normal_rows(world), out)
+        same = (out.view(np.int64) == expected.view(np.int64)) | (np.isnan(out) & np.isnan(expected))
+        assert same.all(), f"trial {trial}: {int((~same).sum())} values differ"
+
+
 def test_vertex_and_face_lighting_are_the_stages_to_the_bit():
     """`k_light.base_colors` (Gouraud, per vertex) and `k_light.face_colors`
     (flat, per triangle) give the float64 bits of

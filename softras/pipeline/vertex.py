@@ -72,10 +72,16 @@ def world_normals(normals: np.ndarray, world: np.ndarray, unit: bool = True) -> 
     """(N, 3) model normals -> world normals by the inverse-transpose of the
     world matrix's 3x3 (normalised when ``unit``), ``inv(M)^T @ n`` summed
     as `_transform` sums (its translation column 0)."""
+    n = _transform(np.ascontiguousarray(normals, np.float64), normal_rows(world))
+    return n / np.linalg.norm(n, axis=1, keepdims=True) if unit else n
+
+
+def normal_rows(world: np.ndarray) -> np.ndarray:
+    """The (3, 4) float64 rows `world_normals` transforms normals by: the
+    inverse-transpose of the world matrix's 3x3, translation column 0."""
     rows = np.zeros((3, 4))
     rows[:, :3] = np.linalg.inv(world[:3, :3]).T
-    n = _transform(np.ascontiguousarray(normals, np.float64), rows)
-    return n / np.linalg.norm(n, axis=1, keepdims=True) if unit else n
+    return rows
 
 
 def world_tangents(tangents: np.ndarray, world: np.ndarray) -> np.ndarray:
