@@ -1043,6 +1043,26 @@ def test_scratch_limit_is_bit_identical(monkeypatch):
     assert fastpath.scratch_nbytes() == sum(b.nbytes for b in fastpath._scratch.buffers.values())
 
 
+def test_scratch_hands_out_the_last_view_only_for_the_same_shape_and_dtype():
+    """`_Scratch.take` gives the same view again for the same name, shape
+    and dtype; another shape a view of that shape on the kept buffer (a new
+    buffer when it has grown); another dtype a buffer of that dtype."""
+    scratch = fastpath._Scratch()
+    first = scratch.take("a", (10, 3), np.float64)
+    assert scratch.take("a", (10, 3), np.float64) is first
+    smaller = scratch.take("a", (4, 3), np.float64)
+    assert smaller.shape == (4, 3) and np.shares_memory(smaller, first) and smaller.flags.c_contiguous
+    again = scratch.take("a", (10, 3), np.float64)
+    assert again.shape == (10, 3) and np.shares_memory(again, first)
+    grown = scratch.take("a", (20, 3), np.float64)
+    assert grown.shape == (20, 3) and not np.shares_memory(grown, first)
+    assert scratch.take("a", (20, 3), np.float64) is grown
+    as_int = scratch.take("a", (20, 3), np.int64)
+    assert as_int.dtype == np.int64 and as_int.shape == (20, 3)
+    assert scratch.take("a", (20, 3), np.float64).dtype == np.float64
+    assert scratch.take("b", (20, 3), np.int64) is not as_int
+
+
 def test_texture_table_cache_limit_is_bit_identical():
     """More textures than the tables' cache holds (it is cleared at 16): 20
     textured draws, each its own texture, rendered twice."""

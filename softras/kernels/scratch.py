@@ -21,17 +21,26 @@ class _Scratch(threading.local):
 
     def __init__(self):
         self.buffers = {}
+        self.last = {}          # name -> (shape, dtype as asked, the view handed out)
 
     def take(self, name: str, shape: tuple, dtype) -> np.ndarray:
-        """An uninitialised C-contiguous array of this shape and dtype."""
-        dtype = np.dtype(dtype)
+        """An uninitialised C-contiguous array of this shape and dtype.  The
+        same shape and dtype as the last time gets the same view again (a
+        scene of many draws of one mesh asks ~9 times a draw: 0.85 us a
+        call to make a new view, 0.24 us to hand out the last one)."""
+        last = self.last.get(name)
+        if last is not None and last[0] == shape and last[1] is dtype:
+            return last[2]
         size = math.prod(shape)
         buffer = self.buffers.get(name)
-        if buffer is None or buffer.dtype != dtype or buffer.size < size:
+        if buffer is None or buffer.dtype != np.dtype(dtype) or buffer.size < size:
             buffer = np.empty(max(size, 1), dtype)
-            if buffer.nbytes <= self.MAX_BYTES:
-                self.buffers[name] = buffer
-        return buffer[:size].reshape(shape)
+            if buffer.nbytes > self.MAX_BYTES:
+                return buffer[:size].reshape(shape)
+            self.buffers[name] = buffer
+        view = buffer[:size].reshape(shape)
+        self.last[name] = (shape, dtype, view)
+        return view
 
 
 def read_only(a, dtype) -> np.ndarray:
