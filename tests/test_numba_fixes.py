@@ -25,7 +25,7 @@ from softras.pipeline import numba_fixes
 PROGRAM = r"""
 import json, re, sys
 import numpy as np
-from softras.pipeline import numba_fixes, vertex
+from softras.pipeline import numba_fixes
 from softras.kernels import light
 from softras.scene import load_scene
 
@@ -45,12 +45,11 @@ numba_fixes._InlinerCopy.deepcopy = counted_block
 scene = load_scene(sys.argv[1])
 draw = next(d for d in scene.draws if d.material.shading != "unlit")
 table, lighting = light.scene_lighting(scene, draw.material)
-world = np.ascontiguousarray(vertex.world_positions(draw.mesh.positions, draw.world))
-normals = np.ascontiguousarray(vertex.world_normals(draw.mesh.normals, draw.world, unit=False))
+world = light.world_attributes(draw, np.empty((len(draw.mesh.positions), 6)))
 base = np.ones((len(world), 4))
 vertex_lighting, _ = light._make_lighting_loops("tests/test_numba_fixes.py")
 lit = np.empty_like(base)
-vertex_lighting(base, world, normals, table, tuple(lighting), lit)
+vertex_lighting(base, world, table, tuple(lighting), lit)
 (compiled,) = vertex_lighting.overloads.values()
 code = re.sub(r"0x[0-9a-f]+", "0x?", compiled.library.get_asm_str())
 print(json.dumps({"code": code, "lit": lit.tobytes().hex(), "used": used}))

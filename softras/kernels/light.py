@@ -61,6 +61,17 @@ def _world_attributes(positions, world_rows, normals, normal_rows, out):
                              + normal_rows[r, 3])
 
 
+def world_attributes(draw, out: np.ndarray) -> np.ndarray:
+    """The draw's world positions and (not unit) world normals into out[:, 0:3]
+    and out[:, 3:6] (out (V, 6 or more) float64), `_world_attributes`;
+    returns out."""
+    mesh = draw.mesh
+    _world_attributes(np.ascontiguousarray(mesh.positions, np.float64),
+                      np.ascontiguousarray(draw.world[:3], np.float64),
+                      np.ascontiguousarray(mesh.normals, np.float64), vertex.normal_rows(draw.world), out)
+    return out
+
+
 def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:
     """A new array (the default ``take`` of `phong_inputs` and `base_colors`)."""
     return np.empty(shape, dtype)
@@ -77,10 +88,7 @@ def phong_inputs(scene, draw, take=_fresh) -> tuple[np.ndarray, np.ndarray, Ligh
     set-up passes a thread's reused buffers (`softras.kernels.scratch`)."""
     mesh, material = draw.mesh, draw.material
     mapped = material.normal_map is not None or material.bump_map is not None
-    out = take("phong_inputs", (len(mesh.positions), 10 if mapped else 6), np.float64)
-    world_rows = np.ascontiguousarray(draw.world[:3], np.float64)
-    _world_attributes(np.ascontiguousarray(mesh.positions, np.float64), world_rows,
-                      np.ascontiguousarray(mesh.normals, np.float64), vertex.normal_rows(draw.world), out)
+    out = world_attributes(draw, take("phong_inputs", (len(mesh.positions), 10 if mapped else 6), np.float64))
     if mapped:
         out[:, 6:] = vertex.world_tangents(mesh.tangents, draw.world)
     return (out, *scene_lighting(scene, material))
@@ -264,14 +272,15 @@ def _make_lighting_loops(sources: str):
     cache would check this file alone.  sources : in the cache key only."""
 
     @numba.njit(cache=True, error_model="numpy", parallel=True)
-    def vertex_lighting(base, world, normals, lights, lighting, out):
+    def vertex_lighting(base, world, lights, lighting, out):
         """Gouraud's lit vertex colours into out (V, 4): base (V, 4) straight,
-        world positions (V, 3), world normals (V, 3, not unit: normalised here as
-        `softras.pipeline.vertex.world_normals` does), alpha kept.  Vertices in
-        parallel (a scan's 36k vertices: 4.4 ms on one thread)."""
+        world (V, 6) the world positions and world normals (not unit:
+        normalised here as `softras.pipeline.vertex.world_normals` does,
+        `_world_attributes`), alpha kept.  Vertices in parallel (a scan's
+        36k vertices: 4.4 ms on one thread)."""
         stamp = sources                 # noqa: F841  (the cache key)
         for v in numba.prange(base.shape[0]):
-            nx, ny, nz = _unit(normals[v, 0], normals[v, 1], normals[v, 2])
+            nx, ny, nz = _unit(world[v, 3], world[v, 4], world[v, 5])
             out[v, 0], out[v, 1], out[v, 2] = _lit_point(base[v, 0], base[v, 1], base[v, 2], world[v, 0],
                                                          world[v, 1], world[v, 2], nx, ny, nz, lights, lighting)
             out[v, 3] = base[v, 3]
@@ -317,8 +326,7 @@ def base_colors(scene, draw, take=_fresh) -> np.ndarray:
         return base
     out = take("lit_base_colors", base.shape, np.float64)
     table, lighting = scene_lighting(scene, material)
-    _vertex_lighting(base, np.ascontiguousarray(vertex.world_positions(draw.mesh.positions, draw.world)),
-                     np.ascontiguousarray(vertex.world_normals(draw.mesh.normals, draw.world, unit=False)),
+    _vertex_lighting(base, world_attributes(draw, take("world_attributes", (len(mesh.positions), 6), np.float64)),
                      table, tuple(lighting), out)
     return out
 
