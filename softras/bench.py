@@ -8,8 +8,8 @@ each softras render paired with a glref render of the same scene, the two
 interleaved (`_paired_times`: at least ``runs`` pairs, and `MIN_PAIRS`
 where they fit in `PAIR_BUDGET` seconds), so that both see the same state
 of a noisy machine and their ratio compares like with like.  glref
-renders at the level's sample count where GL has it (``gl_msaa4`` on a 1-sample scene is timed against
-glref's 4x MSAA), else at the scene's own (exact and softras's own
+renders at the level's sample count where GL has it (``gl_msaa4`` on a
+1-sample scene is timed against glref's 4x MSAA), else at the scene's own (exact and softras's own
 patterns: "gl ms" is then the scene's GL render, a reference point, not the
 same work).  A render is timed end to end from the
 loaded `Scene` to the image (``softras.render(scene, **options)``; for glref

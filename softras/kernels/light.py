@@ -28,7 +28,7 @@ from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix,
 from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW,
                                    _LF_W, _LI_WORD)
 from softras.kernels.stamp import sources_stamp
-from softras.pipeline import fragment, libm, render, vertex
+from softras.pipeline import fragment, libm, vertex
 from softras.pipeline.libm import _power_by, _whole_exponent
 
 # The eye (world space) and the material's Blinn-Phong terms, as scalars.
