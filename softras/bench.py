@@ -9,9 +9,9 @@ interleaved (`_paired_times`: at least ``runs`` pairs, and `MIN_PAIRS`
 where they fit in `PAIR_BUDGET` seconds), so that both see the same state
 of a noisy machine and their ratio compares like with like.  glref
 renders at the level's sample count where GL has it (``gl_msaa4`` on a
-1-sample scene is timed against glref's 4x MSAA), else at the scene's own (exact and softras's own
-patterns: "gl ms" is then the scene's GL render, a reference point, not the
-same work).  A render is timed end to end from the
+1-sample scene is timed against glref's 4x MSAA), else at the scene's own
+(exact and softras's own patterns: "gl ms" is then the scene's GL render, a
+reference point, not the same work).  A render is timed end to end from the
 loaded `Scene` to the image (``softras.render(scene, **options)``; for glref
 ``softras.render(scene, backend="gl")``, which includes its upload and
 readback).  The figure that matters to a user is end to end *from the scene file*: for
@@ -70,7 +70,7 @@ scene whose mesh is written out as explicit arrays (the 24k- and
 100k-triangle grids, `explicit_grid_scene`), against ``json.load`` of the
 same file, interleaved, each after a full garbage collection and both
 without the collector's runs (load_scene pauses it while it parses,
-`softras.scene.parse._collector_paused`; json.load is timed with it
+`softras.scene.parse.collector_paused`; json.load is timed with it
 paused too: its runs over the objects that earlier renders left took
 json.load of the 100k grid from 250 to 465 ms in one bench run), and
 their ratio: what validation and conversion cost beyond reading the JSON
@@ -94,6 +94,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from softras.bench_scenes import blended_scene, floor_scene, grid_scene, lines_scene, lit_scene, parts_scene
+from softras.scene.parse import collector_paused
 
 
 @dataclass(frozen=True)
@@ -372,14 +373,11 @@ def loader_times(cols: int, runs: int = LOADER_RUNS) -> dict:
     with _scene_file(explicit_grid_scene(cols)) as path:
         for _ in range(runs):
             gc.collect()                # (each from the same state of the garbage collector,
-            gc.disable()                # and json.load as load_scene parses: without its runs)
-            try:
+            with collector_paused():    # and json.load as load_scene parses: without its runs)
                 start = time.perf_counter()
                 with open(path, encoding="utf-8") as file:
                     json.load(file)
                 json_s.append(time.perf_counter() - start)
-            finally:
-                gc.enable()
             gc.collect()
             start = time.perf_counter()
             scene = softras.load_scene(path)

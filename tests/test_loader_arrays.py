@@ -132,7 +132,7 @@ def test_numpy_arrays_from_python_load_like_lists():
 
 def test_loading_a_file_pauses_the_garbage_collector_and_restores_it(tmp_path, monkeypatch):
     """A scene file is parsed and built with the cyclic garbage collector
-    off (`parse._collector_paused`: its ~100k lists for a 24k-triangle mesh
+    off (`parse.collector_paused`: its ~100k lists for a 24k-triangle mesh
     would start dozens of collections), and the collector is left as it was:
     on, off, or on after a file that fails to load."""
     import gc

@@ -938,7 +938,7 @@ def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
         path = os.fspath(source)
         if path.lower().endswith(gltf.SUFFIXES):         # a glTF file is a whole scene (docs/gltf.md)
             return gltf.load_gltf_scene(path)
-        with _collector_paused():
+        with collector_paused():
             data = _read_json(path)
             if not isinstance(data, dict):
                 raise SceneError(path, f"the top level must be a JSON object, got {type_name(data)}")
@@ -947,7 +947,7 @@ def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
 
 
 @contextlib.contextmanager
-def _collector_paused():
+def collector_paused():
     """Python's cyclic garbage collector off for the block (as it was
     before afterwards).  A scene file's arrays parse into one list per
     vertex and per triangle (100k containers for a 24k-triangle mesh), each
