@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 import softras
+from softras.bench_scenes import blended_scene
 from softras.kernels import draw as fastpath
 from softras.kernels import ops as kernel_ops
 from softras.pipeline import ops, render as stages
@@ -113,6 +114,26 @@ def test_any_sample_count_and_pattern_gives_the_stages_floats(kind, samples, pat
     scene = softras.load_scene(kind_scene(kind, samples))
     assert_same_floats(scene, f"{kind} scene, {samples} samples {pattern}, {resolve} resolve",
                        samples=samples, pattern=pattern, resolve_filter=resolve)
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+@pytest.mark.parametrize("shading", ["unlit", "flat"])
+@pytest.mark.parametrize("alphas", [(0.25, 0.75), (0.0, 1.0), (1.0, 0.1)])
+def test_translucent_layers_give_the_stages_floats(alphas, shading, samples):
+    """Tilted layers blended "over" without depth (`bench_scenes.blended_scene`,
+    each with its own alphas from alphas[0] to alphas[1]), alphas of 0 and
+    1 included: unlit, at one sample the rows of
+    `softras.kernels.rgba32f._row_floats_over`, at 4 the lanes; flat-shaded
+    (lit by a directional light), the lanes."""
+    data = blended_scene(96, layers=4, cols=3)
+    if shading == "flat":
+        data["lights"] = [{"type": "directional", "direction": [0.3, -0.5, -1], "color": [1, 0.9, 0.8]}]
+    for k, node in enumerate(data["nodes"]):
+        a = alphas[0] + (alphas[1] - alphas[0]) * k / 3
+        node["mesh"]["corner_colors"] = [[1, 0, 0, a], [0, 1, 0.25, 1 - a], [0, 0, 1, a], [1, 0.5, 1, alphas[0]]]
+        node["material"] = {"shading": shading}
+    scene = softras.load_scene(data)
+    assert_same_floats(scene, f"{shading} layers with alphas {alphas}, {samples} samples", samples=samples)
 
 
 @pytest.mark.parametrize("name", texture_beyond.FILTERS)

@@ -33,7 +33,8 @@ naming the readable function it must equal:
    `_textured_tile`: each 8x8 block's covered 2x2 quads, with per-quad
    derivatives and level of detail), RGBA8 rounding, then the depth test,
    blend and write (`softras.kernels.ops`).  At 1 or 4 samples an unlit,
-   untextured draw without alpha test into RGBA8 (the commonest) skips the
+   untextured draw without alpha test into RGBA8 (the commonest), and at
+   1 sample one into rgba32f, skips the
    lanes: each row's run of covered pixels is depth-tested, shaded, blended
    and stored where it lies, in one loop LLVM vectorises (`_flat_row`).
    No fragment list exists.
@@ -99,7 +100,7 @@ from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_
                                  _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _row_run, _tile_box)
-from softras.kernels.rgba32f import _float_fragments
+from softras.kernels.rgba32f import _float_fragments, _row_floats_over
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, Clipped,
                                    Triangles, _setup)
@@ -500,7 +501,8 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     lanes and shaded (`_flat_block`) from LANES of them on (a row adds at
     most TILE, so the lanes never exceed 2 * LANES) and after the
     triangle's last block or row.  At 1 or 4 samples an unlit draw without
-    alpha test into RGBA8 shades each row's run where it lies instead
+    alpha test into RGBA8 (at 1 sample into rgba32f too) shades each row's
+    run where it lies instead
     (`_flat_row`): the lanes' steps in one loop, without writing the pixels
     down first (docs/speed.md, "Thirty-second round").  The per-pixel arithmetic is
     `softras.pipeline.render.draw_triangles`'s, operation for operation.
@@ -522,9 +524,11 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     color32, depth, color_f = fb.color32, fb.depth, fb.color_f
     depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
     # At 1 or 4 samples an unlit draw without alpha test into RGBA8 shades
-    # each row's run where it lies (`_flat_row`), without lanes.
-    by_rows = not (state.lit or state.alpha_test or state.rgba32f)
+    # each row's run where it lies (`_flat_row`), without lanes; so does
+    # one sample's commonest draw into rgba32f (`_float_rows`).
+    by_rows = not (state.lit or state.alpha_test or state.rgba32f) or (n_samples == 1 and _float_rows(state))
     words = color32.reshape(-1)             # (the colour words: a pixel's samples one after another)
+    floats = color_f.reshape(-1)            # (an rgba32f buffer's floats, a pixel's four after another)
     full_mask = (1 << n_samples) - 1
     box = samples.box
     for j in range(bin_start[tile], bin_start[tile + 1]):
@@ -533,7 +537,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
         if row_runs and by_rows:
             for y in range(y_start, y_end + 1):
-                _flat_row(x_start, x_end, y, edges, offsets, t, tri_f, colors, positions, depths, words,
+                _flat_row(x_start, x_end, y, edges, offsets, t, tri_f, colors, positions, depths, words, floats,
                           depth.shape[1], state, n_samples)
             continue
         # The units k = 0 .. n_units - 1: at one sample the box's pixel rows
@@ -797,19 +801,37 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, words, width, state, n_samples):
+def _float_rows(state):
+    """Whether an untextured draw into an rgba32f buffer, at one sample, is
+    shaded by rows (`_flat_row`, `softras.kernels.rgba32f._row_floats_over`):
+    unlit, without alpha test, depth test or depth writes, blended "over",
+    colours interpolated (translucent layers).  Every other such draw
+    takes the lanes (`_flat_block`): a copy of the row loop for "less"
+    with depth writes, as RGBA8 has, raised the peak memory of the
+    one-sample driver's compile from 674 to 1055 MB (docs/speed.md,
+    "Thirty-sixth round")."""
+    return (state.rgba32f and not (state.lit or state.alpha_test or state.flat)
+            and not _uses_depth(state.depth_func, state.write_z) and state.blend == 1)
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, words, floats, width, state,
+              n_samples):
     """`_flat_block` of an unlit, untextured triangle t's fragments in pixels
     x0..x1 of row py at 1 or 4 samples a pixel (n_samples, a constant),
-    without alpha test, into an RGBA8 buffer: the row's run of covered
-    pixels (`softras.kernels.rasterize._row_run`, the pixels `_list_row`
-    lists; at 4 samples the union of each sample's run) depth-tested,
-    shaded and written where they lie, pixel by pixel (`_row_pixels`), with
-    no lane rows in between.  depths, words : the depth buffer and the
-    colour words seen as one row each (``reshape(-1)``, a pixel's samples
-    one after another); width : the picture's.  The common draws get a
-    copy of the pixel loop with their depth test, blend and shading
-    constants (so that LLVM vectorises it): "less" with depth writes and no
-    blend, interpolated or flat (one sample), and no depth with "over"."""
+    without alpha test, into an RGBA8 buffer (or at one sample an rgba32f
+    one, where `_float_rows` holds): the row's run of covered pixels
+    (`softras.kernels.rasterize._row_run`, the pixels `_list_row` lists; at
+    4 samples the union of each sample's run) depth-tested, shaded and
+    written where they lie, pixel by pixel (`_row_pixels`,
+    `softras.kernels.rgba32f._row_floats_over`), with no lane rows in between.
+    depths, words, floats : the depth buffer, the colour words and an
+    rgba32f buffer's floats seen as one row each (``reshape(-1)``, a
+    pixel's samples one after another); width : the picture's.  The common
+    draws get a copy of the pixel loop with their depth test, blend and
+    shading constants (so that LLVM vectorises it): "less" with depth writes
+    and no blend, interpolated or flat (one sample), and no depth with
+    "over" (rgba32f: that one alone)."""
     # The runs as one flat tuple (lo, hi, ...) a sample (numba's array
     # analysis fails on a tuple of tuples indexed in a loop).  (The two
     # branches give tuples of different types: only the drivers of 1 and 4
@@ -839,7 +861,9 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
                      positions[2, 0], positions[2, 1], positions[3, 0], positions[3, 1])
     start, end = x0 + lo, x0 + hi
     depth_func, write_z, blend, flat = state.depth_func, state.write_z, state.blend, state.flat
-    if depth_func == LESS and write_z and blend == 0 and not flat:
+    if n_samples == 1 and state.rgba32f:     # (`_float_rows`: no depth, "over", interpolated)
+        _row_floats_over(start, end, py, corners, corner_colors, floats, width)
+    elif depth_func == LESS and write_z and blend == 0 and not flat:
         _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, True,
                     LESS, True, 0, False, n_samples)
     elif depth_func == LESS and write_z and blend == 0 and n_samples == 1:

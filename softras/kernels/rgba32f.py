@@ -13,7 +13,12 @@ the tile kernel's as for RGBA8: `softras.kernels.draw` calls
 `_float_fragments` in place of the colour words and their writes when the
 draw's `softras.kernels.draw.DrawState` says rgba32f.  It is a function of
 its own, not inlined: one compiled copy (Phong's lighting with it) serves
-every tile driver, and the RGBA8 draws pay one branch per block.
+every tile driver, and the RGBA8 draws pay one branch per block.  At one
+sample an unlit, interpolated draw without alpha test or depth, blended
+"over", takes `_row_floats_over` instead: the same steps pixel by pixel
+along a row's run of covered pixels, as RGBA8's
+`softras.kernels.draw._row_pixels_1` (inlined into the driver of one
+sample).
 
 `resolve` makes the picture from the float samples, gl precision's
 float32 and exact precision's float64 alike (`softras.kernels.exact.resolve`
@@ -28,13 +33,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from softras.kernels.interpolate import _mix
+from softras.kernels.interpolate import _mix, _weights_at
 from softras.kernels.lanes import _LF_LIT, _LF_TEX, _LF_W, _LI_PASS, _LI_PX, _LI_PY
 from softras.kernels.light import _phong_colors
 from softras.kernels.ops import _resolve_box, _write_floats
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import libm, ops
 from softras.pipeline import render as stages
+from softras.pipeline.ops import _blend
 
 
 def _make_float_fragments(sources: str):
@@ -86,6 +92,38 @@ def _make_float_fragments(sources: str):
 
 
 _float_fragments = _make_float_fragments(sources_stamp(ops, libm))
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _row_floats_over(start, end, py, corners, corner_colors, floats, width):
+    """`_float_fragments` of an unlit, untextured triangle's fragments at
+    pixels start..end of row py, one sample a pixel, every pixel covered,
+    without depth test, depth writes or alpha test, blended "over": the
+    steps of `softras.kernels.draw._flat_block` into an rgba32f buffer with
+    the same operations in the same order, pixel by pixel (the pixels are
+    distinct, so their order does not matter): the straight colour (the
+    corner colours ``corner_colors``, an `RGBA` of corner triples, under the
+    perspective weights `_weights_at` at the pixel centre; `Corners`
+    corners), premultiplied, and `softras.kernels.ops._write_floats`' blend
+    of each channel over the stored float32 (widened), stored rounded to
+    float32.  floats : the colour buffer (H, W, 1, 4) seen as one row
+    (``reshape(-1)``); width : the picture's.
+
+    A loop LLVM vectorises, as `softras.kernels.draw._row_pixels_1`: no
+    branch, and the index an unsigned integer (blended_8x128_512 into
+    rgba32f 8.7 -> 5.2 ms, where the lanes blended each channel as they
+    stored it; docs/speed.md, "Thirty-sixth round")."""
+    row = py * width
+    cy = py + 0.5
+    for px in range(start, end + 1):
+        w = _weights_at(corners, px + 0.5, cy)
+        r, g, b, a = _mix(w, corner_colors.r), _mix(w, corner_colors.g), _mix(w, corner_colors.b), \
+            _mix(w, corner_colors.a)
+        j = np.uint64(row + px) * np.uint64(4)
+        floats[j] = _blend(1, r * a, floats[j], a)
+        floats[j + np.uint64(1)] = _blend(1, g * a, floats[j + np.uint64(1)], a)
+        floats[j + np.uint64(2)] = _blend(1, b * a, floats[j + np.uint64(2)], a)
+        floats[j + np.uint64(3)] = _blend(1, a, floats[j + np.uint64(3)], a)
 
 
 def resolve(job: stages.Job, color: np.ndarray) -> np.ndarray:
