@@ -15,6 +15,8 @@ import pytest
 
 import softras
 from softras.kernels import draw as fastpath
+from softras.kernels import exact as k_exact
+from softras.kernels import lines as k_lines
 from softras.kernels import prepare
 from softras.kernels import setup as k_setup
 from softras.kernels import texture as k_texture
@@ -301,6 +303,25 @@ def test_an_edit_of_the_kernels_prepares_again(fresh_cache, monkeypatch):
     prepare.main(["1u"])
     monkeypatch.setattr(prepare, "_stamp", lambda: "0123456789abcdef")
     assert not prepare.ready((1, False))
+
+
+@pytest.mark.parametrize("variant", [(1, False), (0, True), prepare.EXACT, prepare.LINES], ids=prepare.name)
+def test_a_mark_over_another_version_s_compiled_code_is_not_ready(fresh_cache, monkeypatch, variant):
+    """The mark is there but numba's index of the variant's kernel was
+    written for another version of its source file (a checkout of another
+    version, a render, a checkout back: numba keeps the last version's
+    index only): not ready, so that the preparation, not the first render,
+    compiles it again."""
+    prepare.prepare(variant)
+    assert prepare.ready(variant)
+    kernel = {prepare.EXACT: k_exact._DRAW, prepare.LINES: k_lines._DRAW_LINES}.get(variant) \
+        or fastpath._DRAW_TILES[variant]
+    with monkeypatch.context() as patch:
+        patch.setattr(kernel._cache._cache_file, "_source_stamp", b"another version of the file")
+        patch.setattr(prepare, "_marks_seen", set())
+        assert not prepare.ready(variant)
+    monkeypatch.setattr(prepare, "_marks_seen", set())
+    assert prepare.ready(variant)
 
 
 def test_an_unknown_mode_is_refused(monkeypatch):

@@ -29,7 +29,9 @@ the variant (the parallel set-up, the clipper, flat, Gouraud and Phong
 colours, the texture filters), and then marked ready by a file beside the
 lock.  The mark's name holds a digest of softras's kernel sources, numba's
 version and the host CPU: an edit or an upgrade prepares again.  A mark
-without numba's cache files behind it (a cleared cache) costs a compile in
+counts only while numba's index of the variant's main kernels is current
+(`_cached`: not cleared, not left by another version of the sources);
+one of the smaller kernels missing from numba's cache costs a compile in
 the render, as before, not a wrong picture.
 
 ``SOFTRAS_COMPILE=wait|background`` chooses the mode (default: background;
@@ -156,11 +158,39 @@ _marks_seen: set[Path] = set()
 
 def ready(variant) -> bool:
     """Whether ``variant`` ((samples, textured), EXACT or LINES) has been prepared on this
-    machine (a mark found once is not looked up again in this process)."""
+    machine: its mark is there and numba's cache holds its kernels for
+    their sources as they are now (`_cached`).  A variant found ready is
+    not looked up again in this process."""
     mark = _mark(variant)
-    if mark not in _marks_seen and mark.exists():
+    if mark not in _marks_seen and mark.exists() and _cached(variant):
         _marks_seen.add(mark)
     return mark in _marks_seen
+
+
+def _cached(variant) -> bool:
+    """Whether numba's on-disk index of each of the variant's main kernels
+    (the tile driver; the line kernel; exact's draw and line kernels) is
+    for its source file as it is now.  numba keeps one index per function,
+    for the last version of the file it compiled (a digest of its bytes):
+    after a checkout of another version of softras, a render there and a
+    checkout back, the mark (keyed on the sources too) is there but the
+    index is the other version's, and the first render compiled the
+    driver again, 40-70 s, even in the background mode.  (numba's own
+    index check, `IndexDataCacheFile._load_index`: empty when missing,
+    of another numba version or stale.)"""
+    if variant == EXACT:
+        from softras.kernels import exact, exact_lines
+
+        kernels = (exact._DRAW, exact_lines._DRAW_LINES)
+    elif variant == LINES:
+        from softras.kernels import lines
+
+        kernels = (lines._DRAW_LINES,)
+    else:
+        from softras.kernels import draw
+
+        kernels = (draw._DRAW_TILES[variant],)
+    return all(kernel._cache._cache_file._load_index() for kernel in kernels)
 
 
 @contextlib.contextmanager
