@@ -324,6 +324,24 @@ def test_a_mark_over_another_version_s_compiled_code_is_not_ready(fresh_cache, m
     assert prepare.ready(variant)
 
 
+def test_an_index_written_anew_for_another_driver_leaves_this_one_not_ready(fresh_cache, monkeypatch):
+    """The tile drivers are one function with different closure values, one
+    numba index: current, but holding only another driver's entries (that
+    driver compiled after an edit and its undoing), this one is not ready."""
+    prepare.prepare((1, False))
+    prepare.prepare((4, False))
+    assert prepare.ready((4, False))
+    mine, other = fastpath._DRAW_TILES[(4, False)], fastpath._DRAW_TILES[(1, False)]
+    cache_file = mine._cache._cache_file
+    index = cache_file._load_index()
+    own = mine._cache._index_key(None, mine.targetctx.codegen())[1:]
+    theirs = other._cache._index_key(None, other.targetctx.codegen())[1:]
+    assert any(key[1:] == own for key in index) and any(key[1:] == theirs for key in index)
+    monkeypatch.setattr(cache_file, "_load_index", lambda: {k: v for k, v in index.items() if k[1:] != own})
+    monkeypatch.setattr(prepare, "_marks_seen", set())
+    assert not prepare.ready((4, False))
+
+
 def test_an_unknown_mode_is_refused(monkeypatch):
     monkeypatch.setenv(prepare.ENV, "soon")
     with pytest.raises(ValueError, match="SOFTRAS_COMPILE='soon': expected one of wait, background"):

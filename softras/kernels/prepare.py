@@ -168,16 +168,16 @@ def ready(variant) -> bool:
 
 
 def _cached(variant) -> bool:
-    """Whether numba's on-disk index of each of the variant's main kernels
-    (the tile driver; the line kernel; exact's draw and line kernels) is
-    for its source file as it is now.  numba keeps one index per function,
-    for the last version of the file it compiled (a digest of its bytes):
-    after a checkout of another version of softras, a render there and a
+    """Whether numba's on-disk cache holds the variant's main kernels (the
+    tile driver; the line kernel; exact's draw and line kernels) compiled
+    from their source files as they are now (`_in_index`).  numba keeps one
+    index per function, for the last version of its file that it compiled:
+    after a checkout of another version of softras, a render and a
     checkout back, the mark (keyed on the sources too) is there but the
-    index is the other version's, and the first render compiled the
-    driver again, 40-70 s, even in the background mode.  (numba's own
-    index check, `IndexDataCacheFile._load_index`: empty when missing,
-    of another numba version or stale.)"""
+    index is the other version's, and the first render compiled the driver
+    again, even in the background mode.  And the five tile drivers are one
+    function (`softras.kernels.draw._make_draw_tiles`'s closure): an index
+    written anew for one of them holds none of the others."""
     if variant == EXACT:
         from softras.kernels import exact, exact_lines
 
@@ -190,7 +190,18 @@ def _cached(variant) -> bool:
         from softras.kernels import draw
 
         kernels = (draw._DRAW_TILES[variant],)
-    return all(kernel._cache._cache_file._load_index() for kernel in kernels)
+    return all(_in_index(kernel) for kernel in kernels)
+
+
+def _in_index(kernel) -> bool:
+    """Whether numba's cache index of the dispatcher ``kernel`` is current
+    and has an entry for its code and closure values, for any signature
+    (numba's own keys: `Cache._index_key` without the signature, and
+    `IndexDataCacheFile._load_index`, empty when the index is missing, of
+    another numba version or stale)."""
+    cache = kernel._cache
+    _, magic, code = cache._index_key(None, kernel.targetctx.codegen())
+    return any(key[1:] == (magic, code) for key in cache._cache_file._load_index())
 
 
 @contextlib.contextmanager
