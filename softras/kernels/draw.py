@@ -34,7 +34,7 @@ naming the readable function it must equal:
    derivatives and level of detail), RGBA8 rounding, then the depth test,
    blend and write (`softras.kernels.ops`).  At 1 or 4 samples an unlit,
    untextured draw without alpha test into RGBA8 (the commonest), and at
-   1 sample one into rgba32f, skips the
+   1 sample translucent layers into rgba32f (`_float_rows`), skip the
    lanes: each row's run of covered pixels is depth-tested, shaded, blended
    and stored where it lies, in one loop LLVM vectorises (`_flat_row`).
    No fragment list exists.
@@ -501,8 +501,8 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     lanes and shaded (`_flat_block`) from LANES of them on (a row adds at
     most TILE, so the lanes never exceed 2 * LANES) and after the
     triangle's last block or row.  At 1 or 4 samples an unlit draw without
-    alpha test into RGBA8 (at 1 sample into rgba32f too) shades each row's
-    run where it lies instead
+    alpha test into RGBA8 (at 1 sample translucent layers into rgba32f too,
+    `_float_rows`) shades each row's run where it lies instead
     (`_flat_row`): the lanes' steps in one loop, without writing the pixels
     down first (docs/speed.md, "Thirty-second round").  The per-pixel arithmetic is
     `softras.pipeline.render.draw_triangles`'s, operation for operation.
@@ -808,7 +808,7 @@ def _float_rows(state):
     colours interpolated (translucent layers).  Every other such draw
     takes the lanes (`_flat_block`): a copy of the row loop for "less"
     with depth writes, as RGBA8 has, raised the peak memory of the
-    one-sample driver's compile from 674 to 1055 MB (docs/speed.md,
+    one-sample driver's compile from 0.69 to 1.08 GB (docs/speed.md,
     "Thirty-sixth round")."""
     return (state.rgba32f and not (state.lit or state.alpha_test or state.flat)
             and not _uses_depth(state.depth_func, state.write_z) and state.blend == 1)

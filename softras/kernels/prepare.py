@@ -30,7 +30,8 @@ colours, the texture filters), and then marked ready by a file beside the
 lock.  The mark's name holds a digest of softras's kernel sources, numba's
 version and the host CPU: an edit or an upgrade prepares again.  A mark
 counts only while numba's index of the variant's main kernels is current
-(`_cached`: not cleared, not left by another version of the sources);
+and holds them (`_cached`: not cleared, not left by another version of
+the sources);
 one of the smaller kernels missing from numba's cache costs a compile in
 the render, as before, not a wrong picture.
 
