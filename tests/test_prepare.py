@@ -15,8 +15,6 @@ import pytest
 
 import softras
 from softras.kernels import draw as fastpath
-from softras.kernels import exact as k_exact
-from softras.kernels import lines as k_lines
 from softras.kernels import prepare
 from softras.kernels import setup as k_setup
 from softras.kernels import texture as k_texture
@@ -314,8 +312,7 @@ def test_a_mark_over_another_version_s_compiled_code_is_not_ready(fresh_cache, m
     compiles it again."""
     prepare.prepare(variant)
     assert prepare.ready(variant)
-    kernel = {prepare.EXACT: k_exact._DRAW, prepare.LINES: k_lines._DRAW_LINES}.get(variant) \
-        or fastpath._DRAW_TILES[variant]
+    kernel = prepare.main_kernels(variant)[0]
     with monkeypatch.context() as patch:
         patch.setattr(kernel._cache._cache_file, "_source_stamp", b"another version of the file")
         patch.setattr(prepare, "_marks_seen", set())
@@ -331,7 +328,7 @@ def test_an_index_written_anew_for_another_driver_leaves_this_one_not_ready(fres
     prepare.prepare((1, False))
     prepare.prepare((4, False))
     assert prepare.ready((4, False))
-    mine, other = fastpath._DRAW_TILES[(4, False)], fastpath._DRAW_TILES[(1, False)]
+    (mine,), (other,) = prepare.main_kernels((4, False)), prepare.main_kernels((1, False))
     cache_file = mine._cache._cache_file
     index = cache_file._load_index()
     own = mine._cache._index_key(None, mine.targetctx.codegen())[1:]

@@ -318,8 +318,8 @@ def base_colors(scene, draw, take=_fresh) -> np.ndarray:
     ``take(name, shape, dtype)`` (as in `phong_inputs`)."""
     material, mesh = draw.material, draw.mesh
     base = take("base_colors", (len(mesh.positions), 4), np.float64)
-    if mesh.colors is None:                 # (`softras.pipeline.render.vertex_colors`: opaque white)
-        base[:] = np.ones(4) * material.color
+    if mesh.colors is None:     # (`softras.pipeline.render.vertex_colors`' white: 1 x colour, the same bits)
+        base[:] = material.color
     else:
         np.multiply(mesh.colors, material.color, out=base)
     if material.shading != "gouraud":

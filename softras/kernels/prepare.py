@@ -179,19 +179,24 @@ def _cached(variant) -> bool:
     again, even in the background mode.  And the five tile drivers are one
     function (`softras.kernels.draw._make_draw_tiles`'s closure): an index
     written anew for one of them holds none of the others."""
+    return all(_in_index(kernel) for kernel in main_kernels(variant))
+
+
+def main_kernels(variant) -> tuple:
+    """The numba dispatchers a variant is prepared for: its tile driver
+    (`softras.kernels.draw._DRAW_TILES`), the gl line kernel, or exact's
+    draw and line kernels."""
     if variant == EXACT:
         from softras.kernels import exact, exact_lines
 
-        kernels = (exact._DRAW, exact_lines._DRAW_LINES)
-    elif variant == LINES:
+        return exact._DRAW, exact_lines._DRAW_LINES
+    if variant == LINES:
         from softras.kernels import lines
 
-        kernels = (lines._DRAW_LINES,)
-    else:
-        from softras.kernels import draw
+        return (lines._DRAW_LINES,)
+    from softras.kernels import draw
 
-        kernels = (draw._DRAW_TILES[variant],)
-    return all(_in_index(kernel) for kernel in kernels)
+    return (draw._DRAW_TILES[variant],)
 
 
 def _in_index(kernel) -> bool:
