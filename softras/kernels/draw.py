@@ -93,7 +93,7 @@ import numpy as np
 from softras.kernels.interpolate import (RGBA, _corner_colors, _corners, _lane_alpha_test, _lane_depths,
                                         _lane_weights, _lane_words, _shade_word, _weights_at, plain_colors)
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES,
-                                   LaneBuffers)
+                                   VECTOR, LaneBuffers)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
 from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
@@ -644,9 +644,9 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             if n == 0:
                 continue
             # The block's n lanes shaded.
-            _lane_weights(n, t, tris.f, lf, tris.uv, True)               # weights and (s, t), vectorised
+            _lane_weights(_whole_vectors(n), t, tris.f, lf, tris.uv, True)        # weights and (s, t), vectorised
             if use_depth:
-                _lane_depths(n, t, tris.f, samples.positions, li, count)   # (vectorised)
+                _lane_depths(_whole_vectors(n), t, tris.f, samples.positions, li, count)   # (vectorised)
             if state.mapped != NO_MAP:        # (first: it leaves the map's levels in the level rows)
                 _map_normals(n, lf, li, lu, texel, map_sampler, map_tex.bytes, map_tex.words, map_tex.levels,
                              map_tex.ewa, state.mapped == BUMP_MAP, state.bump_scale)
@@ -698,10 +698,10 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             if state.rgba32f:
                 pass                                  # (`_float_fragments` below)
             elif state.lit:
-                _phong_words(n, t, tris.colors, tris.lit, lf, li, lights, lighting, state.texture,
+                _phong_words(_whole_vectors(n), t, tris.colors, tris.lit, lf, li, lights, lighting, state.texture,
                              state.mapped != NO_MAP)
             elif not words:
-                _lane_words(n, t, tris.colors, lf, li, True, state.flat)
+                _lane_words(_whole_vectors(n), t, tris.colors, lf, li, True, state.flat)
             if state.alpha_test:                          # (a discarded lane's coverage made 0)
                 _lane_alpha_test(n, t, tris.colors, lf, li, _LI_COV, state.texture, state.flat, state.cutoff)
                 _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
@@ -756,7 +756,7 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
             _lane_weights(n, t, tri_f, lf, uv, False)
         _lane_alpha_test(n, t, colors, lf, li, _LI_COV, False, state.flat, state.cutoff)
     if use_depth:
-        _lane_depths(n, t, tri_f, positions, li, n_samples)
+        _lane_depths(_whole_vectors(n), t, tri_f, positions, li, n_samples)
     # (An int64 from the start: from a literal 0, numba typed `_phong_words`'
     # count as Literal[int](0) on its first pass and compiled it twice, 3 s.)
     kept = np.int64(0)
@@ -789,15 +789,22 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
                     lf[_LF_W + c, kept] = lf[_LF_W + c, l]
             kept += p != 0
     if not state.alpha_test and not state.flat:
-        _lane_weights(kept, t, tri_f, lf, uv, False)
+        _lane_weights(_whole_vectors(kept), t, tri_f, lf, uv, False)
     if state.rgba32f:
         _float_fragments(kept, t, colors, lit, lf, li, lights, lighting, state, color_f, np.int64(n_samples))
         return
     if state.lit:
-        _phong_words(kept, t, colors, lit, lf, li, lights, lighting, False, False)
+        _phong_words(_whole_vectors(kept), t, colors, lit, lf, li, lights, lighting, False, False)
     else:
-        _lane_words(kept, t, colors, lf, li, False, state.flat)
+        _lane_words(_whole_vectors(kept), t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _whole_vectors(n):
+    """The lane count n rounded up to whole vectors (`softras.kernels.lanes.VECTOR`),
+    for the arithmetic lane steps: the lanes past n are computed and never read."""
+    return (n + (VECTOR - 1)) & -VECTOR
 
 
 @numba.njit(error_model="numpy", inline="always")

@@ -25,6 +25,19 @@ from collections import namedtuple
 
 LANES = 64                                   # 16 quads of an 8x8 block
 
+# The lanes of one vector register: 8 float64 (AVX-512; two registers on
+# AVX2).  LLVM compiles a lane loop to whole vectors and a remainder taken
+# lane by lane, and the remainder is what a small triangle pays: Phong
+# (`softras.kernels.light._phong_words`, two lights) took 208 ns for 4
+# lanes and 109 ns for 8, its square roots and divisions one lane at a
+# time.  The arithmetic steps, which write nothing but their own lanes'
+# rows, therefore run over the count rounded up to whole vectors
+# (`softras.kernels.draw._whole_vectors`): the lanes past the count compute
+# on what earlier blocks left there, and nothing reads their results.  The
+# rows have 2 * LANES columns and a count is below that, so the rounded
+# count stays inside them.
+VECTOR = 8
+
 # float64 lane rows: pixel centre, perspective weights, (s, t), per level the
 # float32 scales size * 256 of s and t, the mip blend fraction, the filtered
 # texel (r, g, b, a in [0, 1]), the Phong-lit straight colour (r, g, b, a),
