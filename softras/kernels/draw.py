@@ -93,7 +93,7 @@ import numpy as np
 from softras.kernels.interpolate import (RGBA, _corner_colors, _corners, _lane_alpha_test, _lane_depths,
                                         _lane_weights, _lane_words, _shade_word, _weights_at, plain_colors)
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES,
-                                   VECTOR, LaneBuffers)
+                                   LaneBuffers, _whole_vectors)
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
 from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
@@ -668,9 +668,14 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                 _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
             block_passed = 0
             block_two = False                             # a passed quad samples two levels
-            for q in range(n >> 2):
+            # (The vectorised filter over whole vectors, m lanes: the quads
+            # past n sample level 0, as `softras.kernels.maps._map_normals`.)
+            m = _whole_vectors(n) if vectorised else n
+            for q in range(m >> 2):
                 l = 4 * q
-                quad_passed = li[_LI_PASS, l] | li[_LI_PASS, l + 1] | li[_LI_PASS, l + 2] | li[_LI_PASS, l + 3]
+                quad_passed = 0
+                if q < n >> 2:
+                    quad_passed = li[_LI_PASS, l] | li[_LI_PASS, l + 1] | li[_LI_PASS, l + 2] | li[_LI_PASS, l + 3]
                 block_passed |= quad_passed
                 if state.texture and not sampler.beyond:  # the quad's levels on its lanes: what each filter reads
                     block_two |= _quad_levels(q, quad_passed != 0, sampler, table, vectorised, any_two, lf, li)
@@ -681,9 +686,9 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                 pass
             elif vectorised:
                 if block_two:                         # (the level count a constant in each copy)
-                    _lanes_bilinear_fixed(n, 2, words, False, lf, li, lu, texels32, sampler)
+                    _lanes_bilinear_fixed(m, 2, words, False, lf, li, lu, texels32, sampler)
                 else:
-                    _lanes_bilinear_fixed(n, 1, words, False, lf, li, lu, texels32, sampler)
+                    _lanes_bilinear_fixed(m, 1, words, False, lf, li, lu, texels32, sampler)
             elif sampler.beyond:
                 for l in range(n):
                     if li[_LI_PASS, l]:
@@ -798,13 +803,6 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
     else:
         _lane_words(_whole_vectors(kept), t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)
-
-
-@numba.njit(error_model="numpy", inline="always")
-def _whole_vectors(n):
-    """The lane count n rounded up to whole vectors (`softras.kernels.lanes.VECTOR`),
-    for the arithmetic lane steps: the lanes past n are computed and never read."""
-    return (n + (VECTOR - 1)) & -VECTOR
 
 
 @numba.njit(error_model="numpy", inline="always")

@@ -23,6 +23,8 @@ kernel that reads them when it compiles.
 
 from collections import namedtuple
 
+import numba
+
 LANES = 64                                   # 16 quads of an 8x8 block
 
 # The lanes of one vector register: 8 float64 (AVX-512; two registers on
@@ -32,11 +34,18 @@ LANES = 64                                   # 16 quads of an 8x8 block
 # lanes and 109 ns for 8, its square roots and divisions one lane at a
 # time.  The arithmetic steps, which write nothing but their own lanes'
 # rows, therefore run over the count rounded up to whole vectors
-# (`softras.kernels.draw._whole_vectors`): the lanes past the count compute
-# on what earlier blocks left there, and nothing reads their results.  The
-# rows have 2 * LANES columns and a count is below that, so the rounded
-# count stays inside them.
+# (`_whole_vectors`): the lanes past the count compute on what earlier
+# blocks left there, and nothing reads their results.  The rows have 2 *
+# LANES columns and a count is below that, so the rounded count stays
+# inside them.
 VECTOR = 8
+
+
+@numba.njit(cache=True, inline="always")
+def _whole_vectors(n):
+    """The lane count n rounded up to whole vectors of `VECTOR` lanes, for
+    the arithmetic lane steps: the lanes past n are computed and never read."""
+    return (n + (VECTOR - 1)) & -VECTOR
 
 # float64 lane rows: pixel centre, perspective weights, (s, t), per level the
 # float32 scales size * 256 of s and t, the mip blend fraction, the filtered

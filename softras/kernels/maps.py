@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from softras.kernels.lanes import _LF_MAP, _LF_S, _LF_ST0, _LF_T, _LF_TEX, _LI_COV
+from softras.kernels.lanes import _LF_MAP, _LF_S, _LF_ST0, _LF_T, _LF_TEX, _LI_COV, _whole_vectors
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import (_lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _quad_levels,
                                      _sample_lane)
@@ -53,19 +53,24 @@ def _make_map_normals(sources: str):
         else:
             any_two = _lanes_lod(n, sampler, table[0, 1], table[0, 2], lf, li)
         block_two = False
-        for q in range(n >> 2):
+        # The vectorised filter's steps over whole vectors (m lanes,
+        # `softras.kernels.lanes.VECTOR`): the quads past n sample level 0
+        # (valid texel addresses whatever their stale (s, t)), unread.
+        m = _whole_vectors(n) if vectorised else n
+        for q in range(m >> 2):
             l = 4 * q
-            covered = (li[_LI_COV, l] | li[_LI_COV, l + 1] | li[_LI_COV, l + 2] | li[_LI_COV, l + 3]) != 0
+            covered = q < (n >> 2) and (li[_LI_COV, l] | li[_LI_COV, l + 1] | li[_LI_COV, l + 2]
+                                        | li[_LI_COV, l + 3]) != 0
             block_two |= _quad_levels(q, covered, sampler, table, vectorised, any_two, lf, li)
         step_s, step_t = np.float32(1.0 / table[0, 1]), np.float32(1.0 / table[0, 2])
         if bump:
-            for l in range(n):
+            for l in range(m):
                 lf[_LF_ST0, l], lf[_LF_ST0 + 1, l] = lf[_LF_S, l], lf[_LF_T, l]
         for k in range(4 if bump else 1):
             axis = k >> 1                                   # bump: s + step, s - step, t + step, t - step
             sign = np.float32(1.0) if k & 1 == 0 else np.float32(-1.0)
             if bump:
-                for l in range(n):
+                for l in range(m):
                     s32, t32 = np.float32(lf[_LF_ST0, l]), np.float32(lf[_LF_ST0 + 1, l])
                     if axis == 0:
                         s32 = np.float32(s32 + np.float32(sign * step_s))
@@ -73,25 +78,25 @@ def _make_map_normals(sources: str):
                         t32 = np.float32(t32 + np.float32(sign * step_t))
                     lf[_LF_S, l], lf[_LF_T, l] = np.float64(s32), np.float64(t32)
             if vectorised and block_two:                    # (the level count a constant in each copy)
-                _lanes_bilinear_fixed(n, 2, False, bump, lf, li, lu, texels32, sampler)
+                _lanes_bilinear_fixed(m, 2, False, bump, lf, li, lu, texels32, sampler)
             elif vectorised:
-                _lanes_bilinear_fixed(n, 1, False, bump, lf, li, lu, texels32, sampler)
+                _lanes_bilinear_fixed(m, 1, False, bump, lf, li, lu, texels32, sampler)
             else:
                 for l in range(n):
                     if li[_LI_COV, l]:
                         _sample_lane(l, lf, li, texel, sampler, texels, texels32, table, ewa)
             if bump:                                        # dh = h(+) - h(-), the red channel
-                for l in range(n):
+                for l in range(m):
                     h = lf[_LF_TEX, l]
                     lf[_LF_MAP + axis, l] = h if k & 1 == 0 else lf[_LF_MAP + axis, l] - h
         if bump:
-            for l in range(n):
+            for l in range(m):
                 lf[_LF_MAP, l] = -bump_scale * lf[_LF_MAP, l] * 0.5
                 lf[_LF_MAP + 1, l] = -bump_scale * lf[_LF_MAP + 1, l] * 0.5
                 lf[_LF_MAP + 2, l] = 1.0
                 lf[_LF_S, l], lf[_LF_T, l] = lf[_LF_ST0, l], lf[_LF_ST0 + 1, l]
         else:
-            for l in range(n):
+            for l in range(m):
                 for c in range(3):
                     lf[_LF_MAP + c, l] = 2.0 * lf[_LF_TEX + c, l] - 1.0
 

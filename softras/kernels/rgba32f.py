@@ -34,7 +34,7 @@ import numba
 import numpy as np
 
 from softras.kernels.interpolate import _mix, _weights_at
-from softras.kernels.lanes import _LF_LIT, _LF_TEX, _LF_W, _LI_PASS, _LI_PX, _LI_PY
+from softras.kernels.lanes import _LF_LIT, _LF_TEX, _LF_W, _LI_PASS, _LI_PX, _LI_PY, _whole_vectors
 from softras.kernels.light import _phong_colors
 from softras.kernels.ops import _resolve_box, _write_floats
 from softras.kernels.stamp import sources_stamp
@@ -64,18 +64,19 @@ def _make_float_fragments(sources: str):
         state the draw's `softras.kernels.draw.DrawState`; n_samples the
         buffer's samples (an int64)."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        m = _whole_vectors(n)           # (the colours over whole vectors, `softras.kernels.lanes.VECTOR`)
         if state.lit:
-            _phong_colors(n, t, colors, lit, lf, lights, lighting, state.mapped != 0)
+            _phong_colors(m, t, colors, lit, lf, lights, lighting, state.mapped != 0)
         elif state.flat:
-            for l in range(n):
+            for l in range(m):
                 for c in range(4):
                     lf[_LF_LIT + c, l] = colors[t, 0, c]
         else:
             for c in range(4):
                 corner = (colors[t, 0, c], colors[t, 1, c], colors[t, 2, c])
-                for l in range(n):
+                for l in range(m):
                     lf[_LF_LIT + c, l] = _mix((lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l]), corner)
-        for l in range(n):
+        for l in range(m):
             alpha = lf[_LF_LIT + 3, l]
             for c in range(3):
                 lf[_LF_LIT + c, l] = lf[_LF_LIT + c, l] * alpha
