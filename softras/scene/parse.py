@@ -942,7 +942,11 @@ def load_scene(source: str | os.PathLike | dict | Scene) -> Scene:
             data = _read_json(path)
             if not isinstance(data, dict):
                 raise SceneError(path, f"the top level must be a JSON object, got {type_name(data)}")
-            return scene_from_dict(data, source=path, base_dir=os.path.dirname(os.path.abspath(path)))
+            scene = scene_from_dict(data, source=path, base_dir=os.path.dirname(os.path.abspath(path)))
+            # (The document freed while the collector is off: alive as it
+            # is switched on again, its lists were the next collection's.)
+            del data
+        return scene
     raise SceneError("scene", f"expected a file path, a dict or a Scene, got {type(source).__name__}")
 
 
