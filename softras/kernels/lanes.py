@@ -35,9 +35,10 @@ LANES = 64                                   # 16 quads of an 8x8 block
 # time.  The arithmetic steps, which write nothing but their own lanes'
 # rows, therefore run over the count rounded up to whole vectors
 # (`_whole_vectors`): the lanes past the count compute on what earlier
-# blocks left there, and nothing reads their results.  The rows have 2 *
-# LANES columns and a count is below that, so the rounded count stays
-# inside them.
+# blocks left there, and nothing reads their results.  An untextured
+# count is below 2 * LANES, the lf and li rows' width, and a textured
+# block's at most LANES, the lu rows' width: rounded up, each stays inside
+# its rows.
 VECTOR = 8
 
 
