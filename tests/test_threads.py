@@ -6,6 +6,7 @@ may hold anything when a draw begins."""
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 
@@ -104,12 +105,15 @@ def test_the_drivers_read_no_lane_they_have_not_written(monkeypatch):
     """A share's lanes are carried from draw to draw of a batch
     (`draw.draw_batch`): drawn with lanes full of junk, the textured and
     untextured scenes of this file at each driver's sample count give
-    the bytes of zeroed lanes."""
+    the bytes of zeroed lanes.  (The lane steps that run over whole
+    vectors compute lanes past their count from such junk, and must not
+    read outside the texture for them: the integer rows' junk is an
+    address far beyond any texture.)"""
     zeroed = draw.lane_buffers
 
-    def junk(n_samples):
+    def junk(integer_junk, n_samples):
         lanes = zeroed(n_samples)
-        for rows, value in zip(lanes, (1.2345e300, -7, 0xDEADBEEF, np.nan, -3)):
+        for rows, value in zip(lanes, (1.2345e300, integer_junk, 0xDEADBEEF, np.nan, -3)):
             rows[...] = value
         return lanes
 
@@ -119,6 +123,7 @@ def test_the_drivers_read_no_lane_they_have_not_written(monkeypatch):
         for scene in scenes:
             monkeypatch.setattr(draw, "lane_buffers", zeroed)
             expected = softras.render(scene, samples=samples, pattern=pattern)
-            monkeypatch.setattr(draw, "lane_buffers", junk)
-            assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), expected), \
-                f"{samples} samples"
+            for integer_junk in (-7, 1 << 40):
+                monkeypatch.setattr(draw, "lane_buffers", functools.partial(junk, integer_junk))
+                assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), expected), \
+                    f"{samples} samples, integer rows {integer_junk}"
