@@ -243,9 +243,12 @@ _NUMBERS = frozenset((float, int))     # JSON's numbers as Python types (bool is
 _INTS = frozenset((int,))
 
 
-def _uniform_rows(value, widths, kinds) -> int | None:
+def _uniform_rows(value, widths, kinds) -> tuple[int, list] | None:
     """The common row length of ``value``, a list of lists each of one length
-    in ``widths``, whose every entry's type is one of ``kinds``; None
+    in ``widths`` whose every entry's type is one of ``kinds``, and its
+    entries flattened row by row into one list (walked once for their
+    types and once by numpy: 0.2-0.3 ms less for a 12k-vertex mesh's
+    positions or colours than walking the nested lists twice); None
     otherwise."""
     if type(value) is not list or not value or set(map(type, value)) != {list}:
         return None
@@ -253,20 +256,23 @@ def _uniform_rows(value, widths, kinds) -> int | None:
     if len(lengths) != 1:
         return None
     row_width = lengths.pop()
-    if row_width not in widths or not set(map(type, itertools.chain.from_iterable(value))) <= kinds:
+    if row_width not in widths:
         return None
-    return row_width
+    flat = list(itertools.chain.from_iterable(value))
+    if not set(map(type, flat)) <= kinds:
+        return None
+    return row_width, flat
 
 
-def _from_rows(value: list, row_width: int, dtype) -> np.ndarray | None:
-    """`_uniform_rows`' lists as an (N, row_width) array (numpy reads the
-    flattened values twice as fast as the nested lists); None when a number
-    does not fit ``dtype`` (an int beyond float64's or int64's range)."""
+def _from_rows(flat: list, row_width: int, dtype) -> np.ndarray | None:
+    """A flat list of numbers as an (N, row_width) array (numpy reads a flat
+    list twice as fast as nested lists); None when a number does not fit
+    ``dtype`` (an int beyond float64's or int64's range)."""
     try:
-        flat = np.fromiter(itertools.chain.from_iterable(value), dtype, count=len(value) * row_width)
+        out = np.fromiter(flat, dtype, count=len(flat))
     except OverflowError:
         return None
-    return flat.reshape(-1, row_width)
+    return out.reshape(-1, row_width)
 
 
 def _fast_array(value, widths, lo: float, hi: float) -> np.ndarray | None:
@@ -277,8 +283,8 @@ def _fast_array(value, widths, lo: float, hi: float) -> np.ndarray | None:
             return None
         out = value.astype(np.float64)
     else:
-        row_width = _uniform_rows(value, widths, _NUMBERS)
-        if row_width is None or (out := _from_rows(value, row_width, np.float64)) is None:
+        rows = _uniform_rows(value, widths, _NUMBERS)
+        if rows is None or (out := _from_rows(rows[1], rows[0], np.float64)) is None:
             return None
     with np.errstate(invalid="ignore"):
         if not (np.isfinite(out).all() and (lo == -math.inf or out.min() >= lo)
@@ -298,14 +304,14 @@ def _fast_indices(value, width: int, vertex_count: int) -> np.ndarray | None:
             return None
         out = value.astype(np.int64).reshape(-1, width)
     elif type(value) is list and value and type(value[0]) is list:
-        if _uniform_rows(value, (width,), _INTS) is None or (out := _from_rows(value, width, np.int64)) is None:
+        rows = _uniform_rows(value, (width,), _INTS)
+        if rows is None or (out := _from_rows(rows[1], width, np.int64)) is None:
             return None
     elif type(value) is list and value:
         if len(value) % width or set(map(type, value)) != {int}:
             return None
-        if (out := _from_rows([value], len(value), np.int64)) is None:     # (one row: the flat list)
+        if (out := _from_rows(value, width, np.int64)) is None:
             return None
-        out = out.reshape(-1, width)
     else:
         return None
     if out.min() < 0 or out.max() >= vertex_count:
