@@ -284,7 +284,10 @@ def _fast_array(value, widths, lo: float, hi: float) -> np.ndarray | None:
         out = value.astype(np.float64)
     else:
         rows = _uniform_rows(value, widths, _NUMBERS)
-        if rows is None or (out := _from_rows(rows[1], rows[0], np.float64)) is None:
+        if rows is None:
+            return None
+        row_width, flat = rows
+        if (out := _from_rows(flat, row_width, np.float64)) is None:
             return None
     with np.errstate(invalid="ignore"):
         if not (np.isfinite(out).all() and (lo == -math.inf or out.min() >= lo)
@@ -305,7 +308,7 @@ def _fast_indices(value, width: int, vertex_count: int) -> np.ndarray | None:
         out = value.astype(np.int64).reshape(-1, width)
     elif type(value) is list and value and type(value[0]) is list:
         rows = _uniform_rows(value, (width,), _INTS)
-        if rows is None or (out := _from_rows(rows[1], width, np.int64)) is None:
+        if rows is None or (out := _from_rows(rows[1], width, np.int64)) is None:     # (rows: width, flat list)
             return None
     elif type(value) is list and value:
         if len(value) % width or set(map(type, value)) != {int}:
