@@ -1,8 +1,9 @@
 """numba's compile, faster, the same code (softras.pipeline.numba_fixes): the
 fixes are installed, each copies what numba's deepcopy would, and a kernel
 that inlines and runs a parallel loop compiles to the same machine code with
-and without them (the tile drivers, line kernel and stage loops that demo
-and line_star compile did too, docs/speed.md, "Twenty-seventh round")."""
+and without them, with less work (the tile drivers, line kernel and stage
+loops that demo and line_star compile did too, docs/speed.md,
+"Twenty-seventh round"; every variant's kernels, "Thirty-eighth round")."""
 
 from __future__ import annotations
 
@@ -13,23 +14,27 @@ import subprocess
 import sys
 from types import SimpleNamespace
 
-from numba.core import inline_closurecall, ir_utils
+from numba.core import inline_closurecall, ir_utils, ssa
 
 from softras.pipeline import numba_fixes
 
 # In a new process on an empty numba cache: Gouraud's lighting loop compiled
 # anew (a parallel loop, so copy propagation runs, with Blinn-Phong inlined:
 # `_lit_point` and libm's pow), called on lit_spheres' first lit draw;
-# prints its machine code (addresses in symbol names masked), its result and
-# how often each fix was used.
+# prints its machine code (addresses in symbol names masked), its result,
+# how often each fix was used and how much of numba's work was done: the
+# callees' front ends run (bytecode read) and the statements SSA
+# reconstruction's rewrites went through.
 PROGRAM = r"""
 import json, re, sys
 import numpy as np
+from numba.core import ssa, untyped_passes
 from softras.pipeline import numba_fixes
 from softras.kernels import light
 from softras.scene import load_scene
 
-used = {"blocks": 0, "tables": 0}
+used = {"blocks": 0, "tables": 0, "kept": 0}
+work = {"front ends": 0, "ssa statements": 0}
 copy_table = numba_fixes._copy_table
 def counted_table(x):
     table = copy_table(x)
@@ -39,8 +44,20 @@ numba_fixes._copy_table = counted_table
 block_copy = numba_fixes._InlinerCopy.deepcopy
 def counted_block(self, x, memo=None):
     used["blocks"] += 1
-    return block_copy(self, x, memo)
+    y = block_copy(self, x, memo)
+    used["kept"] += y is x
+    return y
 numba_fixes._InlinerCopy.deepcopy = counted_block
+read_bytecode = untyped_passes.ExtractByteCode.run_pass
+def counted_front_end(self, state):
+    work["front ends"] += 1
+    return read_bytecode(self, state)
+untyped_passes.ExtractByteCode.run_pass = counted_front_end
+block_pass = ssa._run_ssa_block_pass
+def counted_statements(states, blk, handler):
+    work["ssa statements"] += len(blk.body)
+    return block_pass(states, blk, handler)
+ssa._run_ssa_block_pass = counted_statements
 
 scene = load_scene(sys.argv[1])
 draw = next(d for d in scene.draws if d.material.shading != "unlit")
@@ -51,8 +68,13 @@ vertex_lighting, _ = light._make_lighting_loops("tests/test_numba_fixes.py")
 lit = np.empty_like(base)
 vertex_lighting(base, world, table, tuple(lighting), lit)
 (compiled,) = vertex_lighting.overloads.values()
+# (Addresses masked; and the functions' identities in the symbol names,
+# "B<n>v<k>": numba numbers every function it reads, and the fixes read
+# fewer; with the sizes of the strings that hold those names.)
 code = re.sub(r"0x[0-9a-f]+", "0x?", compiled.library.get_asm_str())
-print(json.dumps({"code": code, "lit": lit.tobytes().hex(), "used": used}))
+code = re.sub(r"B\d+v\d+", "Bv", code)
+code = re.sub(r'(\.size\s+"\.const\.[^"]*"), \d+', r"\1, N", code)
+print(json.dumps({"code": code, "lit": lit.tobytes().hex(), "used": used, "work": work}))
 """
 
 
@@ -81,6 +103,9 @@ def test_the_fixes_are_installed_on_this_numba():
     assert numba_fixes.install()            # once: a second call changes nothing
     assert getattr(inline_closurecall.InlineWorker.inline_ir, "__wrapped__", None) is not None
     assert getattr(inline_closurecall.InlineWorker.inline_ir.__wrapped__, "_softras", False) is False
+    for wrapped in (inline_closurecall.InlineWorker.run_untyped_passes, ssa._run_ssa, ssa._run_block_rewrite):
+        assert getattr(wrapped, "__wrapped__", None) is not None
+        assert getattr(wrapped.__wrapped__, "__wrapped__", None) is None       # (wrapped once)
 
 
 def test_numba_is_left_alone_where_it_is_not_as_expected():
@@ -88,15 +113,35 @@ def test_numba_is_left_alone_where_it_is_not_as_expected():
         def inline_ir(self):
             pass
 
-    for inliner, passes in ((SimpleNamespace(InlineWorker=Worker), SimpleNamespace(copy=copy, copy_propagate=None)),
-                            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy_propagate=None)),
-                            (SimpleNamespace(copy=copy), SimpleNamespace(copy=copy, copy_propagate=None)),
-                            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy))):
-        assert not numba_fixes.install(inliner, passes)
+        def run_untyped_passes(self):
+            pass
+
+    class Bare:
+        def inline_ir(self):
+            pass
+
+    def ssa_module():
+        return SimpleNamespace(_run_ssa=lambda blocks: blocks, _run_block_rewrite=lambda *args: None)
+
+    ir, ssa = SimpleNamespace(Block=object), ssa_module()
+    for inliner, passes, ssa_, ir_ in (
+            (SimpleNamespace(InlineWorker=Worker), SimpleNamespace(copy=copy, copy_propagate=None), ssa, ir),
+            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy_propagate=None), ssa, ir),
+            (SimpleNamespace(copy=copy), SimpleNamespace(copy=copy, copy_propagate=None), ssa, ir),
+            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy), ssa, ir),
+            (SimpleNamespace(InlineWorker=Bare, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None), ssa, ir),
+            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None),
+             SimpleNamespace(_run_ssa=None), ir),
+            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None), ssa,
+             SimpleNamespace())):
+        before = ssa_.__dict__.copy()
+        assert not numba_fixes.install(inliner, passes, ssa_, ir_)
         assert Worker.inline_ir.__name__ == "inline_ir" and getattr(inliner, "copy", copy) is copy
+        assert not hasattr(Worker.run_untyped_passes, "__wrapped__") and ssa_.__dict__ == before
     inliner, passes = SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None)
-    assert numba_fixes.install(inliner, passes)         # (as expected: installed)
+    assert numba_fixes.install(inliner, passes, ssa, ir)         # (as expected: installed)
     assert Worker.inline_ir._softras and isinstance(inliner.copy, numba_fixes._InlinerCopy)
+    assert Worker.run_untyped_passes.__wrapped__ and ssa._run_ssa.__wrapped__ and ssa._run_block_rewrite.__wrapped__
 
 
 def test_a_table_of_copies_is_copied_as_deepcopy_copies_it():
@@ -129,7 +174,9 @@ def test_one_inlining_copies_the_scope_once():
 
 def test_kernels_compile_to_the_same_code_with_and_without_the_fixes(tmp_path):
     fast, plain = compiled(tmp_path)
-    assert fast["used"]["blocks"] > 0 and fast["used"]["tables"] > 0, fast["used"]
-    assert plain["used"] == {"blocks": 0, "tables": 0}
+    assert fast["used"]["blocks"] > 0 and fast["used"]["tables"] > 0 and fast["used"]["kept"] > 0, fast["used"]
+    assert plain["used"] == {"blocks": 0, "tables": 0, "kept": 0}
+    assert fast["work"]["front ends"] < plain["work"]["front ends"], (fast["work"], plain["work"])
+    assert fast["work"]["ssa statements"] < plain["work"]["ssa statements"], (fast["work"], plain["work"])
     assert fast["code"] == plain["code"], "the fixes changed the machine code"
     assert fast["lit"] == plain["lit"]

@@ -1,4 +1,4 @@
-"""Two fixes to numba's compile time, the same code compiled faster.
+"""Fixes to numba's compile time, the same code compiled faster.
 
 Most of the time a cold kernel took to compile was numba's own Python, not
 LLVM (docs/speed.md, "Twenty-seventh round"), and two deep copies in it
@@ -18,11 +18,33 @@ cost time that grows as the square of a function's size:
   Such a table is copied here as new sets of the same tuples: what
   ``deepcopy`` returns for it (a tuple of strings is its own deep copy).
 
-`install` swaps the name ``copy`` in those two modules for an object whose
-``deepcopy`` does this and hands everything else to `copy.deepcopy`.  It is
-called when `softras.pipeline` is imported, before any of softras's kernels
-compiles, and leaves numba as it is if its modules do not look as expected
-(then compiles are slower, nothing else).  ``SOFTRAS_NUMBA_FIXES=0`` turns
+Three more do work once that numba did again and again (docs/speed.md,
+"Thirty-eighth round"):
+
+- **the inliner's front end**: numba ran the untyped passes on a callee
+  (bytecode to IR, and the inlining of the callee's own callees) at every
+  call site it inlined.  `_run_untyped_passes_once` keeps the IR of each
+  function (with the caller's flags) and hands each call site a copy of
+  it under a new function identity, which ``inline_ir`` copies again
+  before it changes anything, as it did before;
+- **the unused copy**: ``inline_ir`` also deep-copies the callee's IR a
+  second time, to return it unmutated, and both of numba's callers
+  (`numba.core.untyped_passes.InlineInlinables`,
+  `numba.core.typed_passes.InlineOverloads`) discard it: `_InlinerCopy`
+  returns a block it copied in the same inlining as it is;
+- **SSA reconstruction** (`numba.core.ssa`) fixes the variables assigned
+  more than once one at a time, and for each rewrote every block of the
+  function: `_run_ssa_indexed` notes the blocks that name each variable
+  and `_rewrite_where_named` rewrites only those, the others kept as they
+  are (a block that does not name the variable is one the rewrite leaves
+  as it is).
+
+`install` swaps the name ``copy`` in the first two modules for an object
+whose ``deepcopy`` does this and hands everything else to `copy.deepcopy`,
+and wraps the three functions.  It is called when `softras.pipeline` is
+imported, before any of softras's kernels compiles, and leaves numba as
+it is if its modules do not look as expected (then compiles are slower,
+nothing else).  ``SOFTRAS_NUMBA_FIXES=0`` turns
 it off, to measure it.  The compiled code is the same either way: every
 variant's kernels compiled with and without gave the same assembly
 (docs/speed.md), and tests/test_numba_fixes.py compares one parallel
@@ -34,17 +56,27 @@ from __future__ import annotations
 import copy
 import functools
 import os
+from collections import defaultdict
 
 
 class _InlinerCopy:
     """The ``copy`` module as `numba.core.inline_closurecall` sees it: while
     an ``inline_ir`` call runs, ``deepcopy`` without a memo uses that call's
-    one memo (`_inline_ir_sharing_one_memo`)."""
+    one memo, and returns a block that it copied in that call as it is
+    (``made``: their ids; ``inline_ir``'s second, discarded copy) (`_inline_ir_sharing_one_memo`)."""
 
     memo: dict | None = None
+    made: set | None = None
 
     def deepcopy(self, x, memo=None):
-        return copy.deepcopy(x, self.memo if memo is None else memo)
+        if memo is not None or self.memo is None:
+            return copy.deepcopy(x, memo)
+        if self.made is not None and id(x) in self.made:
+            return x
+        y = copy.deepcopy(x, self.memo)
+        if self.made is not None:
+            self.made.add(id(y))
+        return y
 
     def __getattr__(self, name):
         return getattr(copy, name)
@@ -76,34 +108,111 @@ class _PassesCopy:
         return getattr(copy, name)
 
 
-def install(inliner=None, passes=None) -> bool:
-    """Install both fixes (once) into numba's `numba.core.inline_closurecall`
-    and `numba.core.ir_utils` (or the modules given, for the tests); False,
-    and nothing changed, where they are off or the modules are not as
-    expected."""
+_SSA_NAMES = ("_run_ssa", "_run_block_rewrite")
+
+
+def install(inliner=None, passes=None, ssa=None, ir=None) -> bool:
+    """Install the fixes (once) into numba's `numba.core.inline_closurecall`,
+    `numba.core.ir_utils` and `numba.core.ssa` (or the modules given, for
+    the tests; ``ir``: `numba.core.ir`); False, and nothing changed, where
+    they are off or the modules are not as expected."""
     if os.environ.get("SOFTRAS_NUMBA_FIXES", "1") == "0":
         return False
-    if inliner is None or passes is None:
-        from numba.core import inline_closurecall as inliner, ir_utils as passes
+    from numba.core import inline_closurecall, ir as numba_ir, ir_utils, ssa as numba_ssa
+
+    inliner = inline_closurecall if inliner is None else inliner
+    passes = ir_utils if passes is None else passes
+    ssa = numba_ssa if ssa is None else ssa
+    ir = numba_ir if ir is None else ir
     worker = getattr(inliner, "InlineWorker", None)
     inline_ir = getattr(worker, "inline_ir", None)
+    run_untyped = getattr(worker, "run_untyped_passes", None)
     if getattr(inline_ir, "_softras", False):
         return True
-    if inline_ir is None or getattr(inliner, "copy", None) is not copy or getattr(passes, "copy", None) is not copy \
-            or not hasattr(passes, "copy_propagate"):
+    if inline_ir is None or run_untyped is None or getattr(inliner, "copy", None) is not copy \
+            or getattr(passes, "copy", None) is not copy or not hasattr(passes, "copy_propagate") \
+            or not all(hasattr(ssa, name) for name in _SSA_NAMES) or not hasattr(ir, "Block"):
         return False
     shared = _InlinerCopy()
 
     @functools.wraps(inline_ir)
     def _inline_ir_sharing_one_memo(*args, **kwargs):
-        outer, shared.memo = shared.memo, {}
+        outer = shared.memo, shared.made
+        shared.memo, shared.made = {}, set()
         try:
             return inline_ir(*args, **kwargs)
         finally:
-            shared.memo = outer
+            shared.memo, shared.made = outer
 
     _inline_ir_sharing_one_memo._softras = True
     worker.inline_ir = _inline_ir_sharing_one_memo
+    worker.run_untyped_passes = _run_untyped_passes_once(run_untyped)
     inliner.copy = shared
     passes.copy = _PassesCopy()
+    ssa._run_ssa, ssa._run_block_rewrite = _ssa_where_named(ssa._run_ssa, ssa._run_block_rewrite, ir.Block)
     return True
+
+
+def _run_untyped_passes_once(run_untyped):
+    """``InlineWorker.run_untyped_passes`` run once per function, caller's
+    flags and pipeline in a process: the same IR, a copy for each call site
+    (blocks copied shallowly, `numba.core.ir.FunctionIR.copy`; ``inline_ir``
+    deep-copies them before it changes them) under a new function identity
+    (the names of its inlined variables are made from it)."""
+    frontends = {}
+
+    @functools.wraps(run_untyped)
+    def run_untyped_passes(self, func, enable_ssa=False):
+        self.flags.enable_ssa = enable_ssa          # (as numba's sets it, on the caller's flags)
+        key = (func, enable_ssa, self._compiler_pipeline, self.flags.summary())
+        found = frontends.get(key)
+        if found is None:
+            found = frontends[key] = run_untyped(self, func, enable_ssa)
+        ir = found.copy()
+        ir.func_id = found.func_id.derive()
+        return ir
+
+    return run_untyped_passes
+
+
+def _ssa_where_named(run_ssa, rewrite, block_type):
+    """`numba.core.ssa`'s ``_run_ssa`` and ``_run_block_rewrite`` with the
+    rewrite of one variable (``states["varname"]``) run only over the
+    blocks whose statements name it (their ``list_vars``, which is what
+    both rewrites look at), noted once per ``_run_ssa``: fixing one
+    variable renames only that variable and adds phis of it, so the blocks
+    that name each of the others stay the same.  The other blocks are
+    returned as new blocks with the same statements, as the rewrite
+    returns them."""
+    index = {"names": None}
+
+    @functools.wraps(run_ssa)
+    def _run_ssa_indexed(blocks):
+        names = defaultdict(set)
+        for label, block in blocks.items():
+            for stmt in block.body:
+                for var in stmt.list_vars():
+                    names[var.name].add(label)
+        outer, index["names"] = index["names"], names
+        try:
+            return run_ssa(blocks)
+        finally:
+            index["names"] = outer
+
+    @functools.wraps(rewrite)
+    def _rewrite_where_named(blocks, states, handler):
+        names = index["names"]
+        if names is None or "varname" not in states:
+            return rewrite(blocks, states, handler)
+        named = names.get(states["varname"], ())
+        rewritten = {}
+        for label, block in blocks.items():
+            if label in named:
+                rewritten.update(rewrite({label: block}, states, handler))
+            else:
+                same = block_type(scope=block.scope, loc=block.loc)
+                same.body = list(block.body)
+                rewritten[label] = same
+        return rewritten
+
+    return _run_ssa_indexed, _rewrite_where_named
