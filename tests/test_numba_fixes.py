@@ -14,7 +14,7 @@ import subprocess
 import sys
 from types import SimpleNamespace
 
-from numba.core import inline_closurecall, ir_utils, ssa
+from numba.core import analysis, inline_closurecall, ir_utils, ssa
 
 from softras.pipeline import numba_fixes
 
@@ -28,13 +28,13 @@ from softras.pipeline import numba_fixes
 PROGRAM = r"""
 import json, re, sys
 import numpy as np
-from numba.core import ssa, untyped_passes
 from softras.pipeline import numba_fixes
+from numba.core import analysis, ssa, untyped_passes
 from softras.kernels import light
 from softras.scene import load_scene
 
 used = {"blocks": 0, "tables": 0, "kept": 0}
-work = {"front ends": 0, "ssa statements": 0}
+work = {"front ends": 0, "ssa statements": 0, "liveness": 0, "liveness differing": 0}
 copy_table = numba_fixes._copy_table
 def counted_table(x):
     table = copy_table(x)
@@ -58,6 +58,14 @@ def counted_statements(states, blk, handler):
     work["ssa statements"] += len(blk.body)
     return block_pass(states, blk, handler)
 ssa._run_ssa_block_pass = counted_statements
+live_map = analysis.compute_live_map                # (each liveness also computed by numba's own)
+def compared_live_map(cfg, blocks, var_use_map, var_def_map):
+    found = live_map(cfg, blocks, var_use_map, var_def_map)
+    numbas = getattr(live_map, "__wrapped__", live_map)(cfg, blocks, var_use_map, var_def_map)
+    work["liveness"] += 1
+    work["liveness differing"] += found != numbas or list(found) != list(numbas)
+    return found
+analysis.compute_live_map = compared_live_map
 
 scene = load_scene(sys.argv[1])
 draw = next(d for d in scene.draws if d.material.shading != "unlit")
@@ -103,7 +111,8 @@ def test_the_fixes_are_installed_on_this_numba():
     assert numba_fixes.install()            # once: a second call changes nothing
     assert getattr(inline_closurecall.InlineWorker.inline_ir, "__wrapped__", None) is not None
     assert getattr(inline_closurecall.InlineWorker.inline_ir.__wrapped__, "_softras", False) is False
-    for wrapped in (inline_closurecall.InlineWorker.run_untyped_passes, ssa._run_ssa, ssa._run_block_rewrite):
+    for wrapped in (inline_closurecall.InlineWorker.run_untyped_passes, ssa._run_ssa, ssa._run_block_rewrite,
+                    analysis.compute_live_map):
         assert getattr(wrapped, "__wrapped__", None) is not None
         assert getattr(wrapped.__wrapped__, "__wrapped__", None) is None       # (wrapped once)
 
@@ -120,28 +129,27 @@ def test_numba_is_left_alone_where_it_is_not_as_expected():
         def inline_ir(self):
             pass
 
-    def ssa_module():
-        return SimpleNamespace(_run_ssa=lambda blocks: blocks, _run_block_rewrite=lambda *args: None)
+    def modules(inliner=True, passes=True, ssa=True, ir=True, analysis=True, worker=Worker):
+        """Stand-ins for numba's five modules, as expected unless one is False."""
+        return (SimpleNamespace(InlineWorker=worker, copy=copy) if inliner else SimpleNamespace(InlineWorker=worker),
+                SimpleNamespace(copy=copy, copy_propagate=None) if passes else SimpleNamespace(copy_propagate=None),
+                SimpleNamespace(_run_ssa=lambda blocks: blocks, _run_block_rewrite=lambda *args: None) if ssa
+                else SimpleNamespace(_run_ssa=None),
+                SimpleNamespace(Block=object) if ir else SimpleNamespace(),
+                SimpleNamespace(compute_live_map=lambda *args: {}) if analysis else SimpleNamespace())
 
-    ir, ssa = SimpleNamespace(Block=object), ssa_module()
-    for inliner, passes, ssa_, ir_ in (
-            (SimpleNamespace(InlineWorker=Worker), SimpleNamespace(copy=copy, copy_propagate=None), ssa, ir),
-            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy_propagate=None), ssa, ir),
-            (SimpleNamespace(copy=copy), SimpleNamespace(copy=copy, copy_propagate=None), ssa, ir),
-            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy), ssa, ir),
-            (SimpleNamespace(InlineWorker=Bare, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None), ssa, ir),
-            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None),
-             SimpleNamespace(_run_ssa=None), ir),
-            (SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None), ssa,
-             SimpleNamespace())):
-        before = ssa_.__dict__.copy()
-        assert not numba_fixes.install(inliner, passes, ssa_, ir_)
-        assert Worker.inline_ir.__name__ == "inline_ir" and getattr(inliner, "copy", copy) is copy
-        assert not hasattr(Worker.run_untyped_passes, "__wrapped__") and ssa_.__dict__ == before
-    inliner, passes = SimpleNamespace(InlineWorker=Worker, copy=copy), SimpleNamespace(copy=copy, copy_propagate=None)
-    assert numba_fixes.install(inliner, passes, ssa, ir)         # (as expected: installed)
+    for unexpected in (modules(inliner=False), modules(passes=False), modules(worker=Bare), modules(ssa=False),
+                       modules(ir=False), modules(analysis=False),
+                       (SimpleNamespace(copy=copy), *modules()[1:])):
+        before = [module.__dict__.copy() for module in unexpected]
+        assert not numba_fixes.install(*unexpected)
+        assert Worker.inline_ir.__name__ == "inline_ir" and not hasattr(Worker.run_untyped_passes, "__wrapped__")
+        assert [module.__dict__ for module in unexpected] == before
+    inliner, passes, ssa, ir, analysis = modules()
+    assert numba_fixes.install(inliner, passes, ssa, ir, analysis)         # (as expected: installed)
     assert Worker.inline_ir._softras and isinstance(inliner.copy, numba_fixes._InlinerCopy)
-    assert Worker.run_untyped_passes.__wrapped__ and ssa._run_ssa.__wrapped__ and ssa._run_block_rewrite.__wrapped__
+    assert all(hasattr(f, "__wrapped__") for f in (Worker.run_untyped_passes, ssa._run_ssa, ssa._run_block_rewrite,
+                                                   analysis.compute_live_map))
 
 
 def test_a_table_of_copies_is_copied_as_deepcopy_copies_it():
@@ -178,5 +186,6 @@ def test_kernels_compile_to_the_same_code_with_and_without_the_fixes(tmp_path):
     assert plain["used"] == {"blocks": 0, "tables": 0, "kept": 0}
     assert fast["work"]["front ends"] < plain["work"]["front ends"], (fast["work"], plain["work"])
     assert fast["work"]["ssa statements"] < plain["work"]["ssa statements"], (fast["work"], plain["work"])
+    assert fast["work"]["liveness"] > 0 and fast["work"]["liveness differing"] == 0, fast["work"]
     assert fast["code"] == plain["code"], "the fixes changed the machine code"
     assert fast["lit"] == plain["lit"]

@@ -39,9 +39,18 @@ Three more do work once that numba did again and again (docs/speed.md,
   are (a block that does not name the variable is one the rewrite leaves
   as it is).
 
+And one does the same work with smaller sets: **liveness**
+(`numba.core.analysis.compute_live_map`, run by every ``PostProcessor``
+after a pass changed the IR) carried sets of variable names from block to
+block until they stopped growing, which for a tile driver's thousands of
+variables and hundreds of blocks took seconds per compile;
+`_live_map_with_bitsets` carries the same sets as the bits of Python ints
+through the same two fixed-point iterations and returns the same sets.
+
 `install` swaps the name ``copy`` in the first two modules for an object
 whose ``deepcopy`` does this and hands everything else to `copy.deepcopy`,
-and wraps the three functions.  It is called when `softras.pipeline` is
+and wraps the three functions and the liveness (as `numba.core.postproc`
+calls it; numba's other callers keep numba's own).  It is called when `softras.pipeline` is
 imported, before any of softras's kernels compiles, and leaves numba as
 it is if its modules do not look as expected (then compiles are slower,
 nothing else).  ``SOFTRAS_NUMBA_FIXES=0`` turns
@@ -111,19 +120,20 @@ class _PassesCopy:
 _SSA_NAMES = ("_run_ssa", "_run_block_rewrite")
 
 
-def install(inliner=None, passes=None, ssa=None, ir=None) -> bool:
+def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None) -> bool:
     """Install the fixes (once) into numba's `numba.core.inline_closurecall`,
-    `numba.core.ir_utils` and `numba.core.ssa` (or the modules given, for
-    the tests; ``ir``: `numba.core.ir`); False, and nothing changed, where
-    they are off or the modules are not as expected."""
+    `numba.core.ir_utils`, `numba.core.ssa` and `numba.core.analysis` (or
+    the modules given, for the tests; ``ir``: `numba.core.ir`); False, and
+    nothing changed, where they are off or the modules are not as expected."""
     if os.environ.get("SOFTRAS_NUMBA_FIXES", "1") == "0":
         return False
-    from numba.core import inline_closurecall, ir as numba_ir, ir_utils, ssa as numba_ssa
+    from numba.core import analysis as numba_analysis, inline_closurecall, ir as numba_ir, ir_utils, ssa as numba_ssa
 
     inliner = inline_closurecall if inliner is None else inliner
     passes = ir_utils if passes is None else passes
     ssa = numba_ssa if ssa is None else ssa
     ir = numba_ir if ir is None else ir
+    analysis = numba_analysis if analysis is None else analysis
     worker = getattr(inliner, "InlineWorker", None)
     inline_ir = getattr(worker, "inline_ir", None)
     run_untyped = getattr(worker, "run_untyped_passes", None)
@@ -131,7 +141,8 @@ def install(inliner=None, passes=None, ssa=None, ir=None) -> bool:
         return True
     if inline_ir is None or run_untyped is None or getattr(inliner, "copy", None) is not copy \
             or getattr(passes, "copy", None) is not copy or not hasattr(passes, "copy_propagate") \
-            or not all(hasattr(ssa, name) for name in _SSA_NAMES) or not hasattr(ir, "Block"):
+            or not all(hasattr(ssa, name) for name in _SSA_NAMES) or not hasattr(ir, "Block") \
+            or not hasattr(analysis, "compute_live_map"):
         return False
     shared = _InlinerCopy()
 
@@ -150,6 +161,7 @@ def install(inliner=None, passes=None, ssa=None, ir=None) -> bool:
     inliner.copy = shared
     passes.copy = _PassesCopy()
     ssa._run_ssa, ssa._run_block_rewrite = _ssa_where_named(ssa._run_ssa, ssa._run_block_rewrite, ir.Block)
+    analysis.compute_live_map = _live_map_with_bitsets(analysis.compute_live_map)
     return True
 
 
@@ -216,3 +228,66 @@ def _ssa_where_named(run_ssa, rewrite, block_type):
         return rewritten
 
     return _run_ssa_indexed, _rewrite_where_named
+
+
+def _live_map_with_bitsets(compute_live_map):
+    """`numba.core.analysis.compute_live_map` (the variables live at the
+    entry of each block) with each set of names an int, a bit per name:
+    the same fixed points (the reaching definitions and uses, in the CFG's
+    topological order; then liveness pushed back to the predecessors, in
+    reverse order), the same sets returned, in a dict over the same blocks
+    in the same order."""
+
+    @functools.wraps(compute_live_map)
+    def compute_live_map_with_bitsets(cfg, blocks, var_use_map, var_def_map):
+        bit: dict[str, int] = {}
+
+        def mask(names) -> int:
+            m = 0
+            for name in names:
+                b = bit.get(name)
+                if b is None:
+                    b = bit[name] = 1 << len(bit)
+                m |= b
+            return m
+
+        topo_order = cfg.topo_order()
+        offsets = [*blocks, *(offset for offset in topo_order if offset not in blocks)]
+        uses = {offset: mask(var_use_map[offset]) for offset in offsets}
+        defs = {offset: mask(var_def_map[offset]) for offset in offsets}
+        successors = {offset: [out for out, _ in cfg.successors(offset)] for offset in topo_order}
+        reach = defaultdict(int)
+        changed = True
+        while changed:
+            changed = False
+            for offset in topo_order:
+                here = reach[offset] | defs[offset] | uses[offset]
+                changed |= here != reach[offset]
+                reach[offset] = here
+                for out in successors[offset]:
+                    grown = reach[out] | here
+                    changed |= grown != reach[out]
+                    reach[out] = grown
+        live = {offset: uses[offset] for offset in blocks}
+        predecessors = {offset: [inc for inc, _ in cfg.predecessors(offset)] for offset in topo_order}
+        changed = True
+        while changed:
+            changed = False
+            for offset in reversed(topo_order):
+                here = live[offset]
+                for inc in predecessors[offset]:
+                    grown = live[inc] | (here & reach[inc] & ~defs[inc])
+                    changed |= grown != live[inc]
+                    live[inc] = grown
+        names = list(bit)
+        return {offset: {names[i] for i in _bits(m)} for offset, m in live.items()}
+
+    return compute_live_map_with_bitsets
+
+
+def _bits(m: int):
+    """The indices of the set bits of ``m`` >= 0, lowest first."""
+    while m:
+        low = m & -m
+        yield low.bit_length() - 1
+        m ^= low
