@@ -129,27 +129,56 @@ def test_numba_is_left_alone_where_it_is_not_as_expected():
         def inline_ir(self):
             pass
 
-    def modules(inliner=True, passes=True, ssa=True, ir=True, analysis=True, worker=Worker):
-        """Stand-ins for numba's five modules, as expected unless one is False."""
+    class Config:
+        def values(self):
+            return {}
+
+    def modules(inliner=True, passes=True, ssa=True, ir=True, analysis=True, config=True, worker=Worker):
+        """Stand-ins for numba's six modules, as expected unless one is False."""
         return (SimpleNamespace(InlineWorker=worker, copy=copy) if inliner else SimpleNamespace(InlineWorker=worker),
                 SimpleNamespace(copy=copy, copy_propagate=None) if passes else SimpleNamespace(copy_propagate=None),
                 SimpleNamespace(_run_ssa=lambda blocks: blocks, _run_block_rewrite=lambda *args: None) if ssa
                 else SimpleNamespace(_run_ssa=None),
                 SimpleNamespace(Block=object) if ir else SimpleNamespace(),
-                SimpleNamespace(compute_live_map=lambda *args: {}) if analysis else SimpleNamespace())
+                SimpleNamespace(compute_live_map=lambda *args: {}) if analysis else SimpleNamespace(),
+                SimpleNamespace(TargetConfig=Config) if config else SimpleNamespace())
 
     for unexpected in (modules(inliner=False), modules(passes=False), modules(worker=Bare), modules(ssa=False),
-                       modules(ir=False), modules(analysis=False),
+                       modules(ir=False), modules(analysis=False), modules(config=False),
                        (SimpleNamespace(copy=copy), *modules()[1:])):
         before = [module.__dict__.copy() for module in unexpected]
         assert not numba_fixes.install(*unexpected)
         assert Worker.inline_ir.__name__ == "inline_ir" and not hasattr(Worker.run_untyped_passes, "__wrapped__")
         assert [module.__dict__ for module in unexpected] == before
-    inliner, passes, ssa, ir, analysis = modules()
-    assert numba_fixes.install(inliner, passes, ssa, ir, analysis)         # (as expected: installed)
+    inliner, passes, ssa, ir, analysis, config = modules()
+    assert numba_fixes.install(inliner, passes, ssa, ir, analysis, config)         # (as expected: installed)
     assert Worker.inline_ir._softras and isinstance(inliner.copy, numba_fixes._InlinerCopy)
     assert all(hasattr(f, "__wrapped__") for f in (Worker.run_untyped_passes, ssa._run_ssa, ssa._run_block_rewrite,
-                                                   analysis.compute_live_map))
+                                                   analysis.compute_live_map, Config.values, Config.__hash__))
+
+
+def test_compile_flags_give_numbas_values_hash_and_equality():
+    """The flags' values, hash and comparisons as numba's own make them,
+    for flags with nothing set, some options set (to defaults too) and
+    copies; and numba's own for a class with an option of its own making."""
+    from numba.core import targetconfig
+    from numba.core.compiler import Flags
+
+    values, hash_ = targetconfig.TargetConfig.values.__wrapped__, targetconfig.TargetConfig.__hash__.__wrapped__
+    plain, some, default, copied = Flags(), Flags(), Flags(), None
+    some.nrt, some.error_model, some.enable_ssa = True, "numpy", False
+    default.nrt = Flags.options["nrt"].default
+    copied = Flags(some)
+    for flags in (plain, some, default, copied):
+        assert flags.values() == values(flags) and list(flags.values()) == list(values(flags))
+        assert hash(flags) == hash_(flags)
+    assert plain == default and plain != some and some == copied and hash(plain) == hash(some)
+
+    class Odd(targetconfig.TargetConfig):
+        level = targetconfig.Option(int, default=1, doc="")
+
+    Odd.level = property(lambda self: 7)            # (not numba's property: numba's own values)
+    assert numba_fixes._plain_options(Odd) is None and Odd().values() == {"level": 7} and hash(Odd()) == hash_(Odd())
 
 
 def test_a_table_of_copies_is_copied_as_deepcopy_copies_it():

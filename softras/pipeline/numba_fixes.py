@@ -39,6 +39,17 @@ Three more do work once that numba did again and again (docs/speed.md,
   are (a block that does not name the variable is one the rewrite leaves
   as it is).
 
+One makes a comparison cheaper: numba's **compile flags**
+(`numba.core.targetconfig.TargetConfig`) are part of the key of every
+typed call it caches (``_OverloadFunctionTemplate._get_impl``), and each
+hash and comparison built a dict of all 22 options through their
+properties, ~8 % of a cold compile.  `_fast_values` builds the same dict
+from the flags' own values and the options' defaults (what each option's
+property returns) and `_fast_hash` returns the same hash (that of the
+sorted option names, which is all numba's hashed), for the classes whose
+options are all numba's generated properties; any other class keeps
+numba's.
+
 And one does the same work with smaller sets: **liveness**
 (`numba.core.analysis.compute_live_map`, run by every ``PostProcessor``
 after a pass changed the IR) carried sets of variable names from block to
@@ -120,20 +131,24 @@ class _PassesCopy:
 _SSA_NAMES = ("_run_ssa", "_run_block_rewrite")
 
 
-def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None) -> bool:
+def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=None) -> bool:
     """Install the fixes (once) into numba's `numba.core.inline_closurecall`,
-    `numba.core.ir_utils`, `numba.core.ssa` and `numba.core.analysis` (or
-    the modules given, for the tests; ``ir``: `numba.core.ir`); False, and
-    nothing changed, where they are off or the modules are not as expected."""
+    `numba.core.ir_utils`, `numba.core.ssa`, `numba.core.analysis` and
+    `numba.core.targetconfig` (or the modules given, for the tests; ``ir``:
+    `numba.core.ir`, ``config``: targetconfig); False, and nothing changed,
+    where they are off or the modules are not as expected."""
     if os.environ.get("SOFTRAS_NUMBA_FIXES", "1") == "0":
         return False
     from numba.core import analysis as numba_analysis, inline_closurecall, ir as numba_ir, ir_utils, ssa as numba_ssa
+    from numba.core import targetconfig
 
     inliner = inline_closurecall if inliner is None else inliner
     passes = ir_utils if passes is None else passes
     ssa = numba_ssa if ssa is None else ssa
     ir = numba_ir if ir is None else ir
     analysis = numba_analysis if analysis is None else analysis
+    config = targetconfig if config is None else config
+    target_config = getattr(config, "TargetConfig", None)
     worker = getattr(inliner, "InlineWorker", None)
     inline_ir = getattr(worker, "inline_ir", None)
     run_untyped = getattr(worker, "run_untyped_passes", None)
@@ -142,7 +157,8 @@ def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None) -> bool
     if inline_ir is None or run_untyped is None or getattr(inliner, "copy", None) is not copy \
             or getattr(passes, "copy", None) is not copy or not hasattr(passes, "copy_propagate") \
             or not all(hasattr(ssa, name) for name in _SSA_NAMES) or not hasattr(ir, "Block") \
-            or not hasattr(analysis, "compute_live_map"):
+            or not hasattr(analysis, "compute_live_map") \
+            or not all(callable(getattr(target_config, name, None)) for name in ("values", "__hash__", "__eq__")):
         return False
     shared = _InlinerCopy()
 
@@ -162,7 +178,60 @@ def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None) -> bool
     passes.copy = _PassesCopy()
     ssa._run_ssa, ssa._run_block_rewrite = _ssa_where_named(ssa._run_ssa, ssa._run_block_rewrite, ir.Block)
     analysis.compute_live_map = _live_map_with_bitsets(analysis.compute_live_map)
+    target_config.values = _fast_values(target_config.values)
+    target_config.__hash__ = _fast_hash(target_config.__hash__)
     return True
+
+
+@functools.cache
+def _plain_options(cls) -> tuple | None:
+    """((name, default), ...) of the options of the `TargetConfig` class
+    ``cls``, when each option's attribute is the property numba generates
+    for it (whose getter returns ``self._values.get(name, option.default)``); else
+    None."""
+    defaults = []
+    for name, option in cls.options.items():
+        attribute = next((klass.__dict__[name] for klass in cls.__mro__ if name in klass.__dict__), None)
+        getter = getattr(attribute, "fget", None)
+        if not isinstance(attribute, property) or not getattr(getter, "__qualname__", "").endswith(
+                "make_prop.<locals>.getter"):
+            return None
+        defaults.append((name, option.default))
+    return tuple(defaults)
+
+
+def _fast_values(values):
+    """``TargetConfig.values``: {option name: value}, from the flags'
+    ``_values`` and the defaults where `_plain_options` knows them."""
+
+    @functools.wraps(values)
+    def fast_values(self):
+        defaults = _plain_options(type(self))
+        if defaults is None:
+            return values(self)
+        own = self._values
+        return {name: own.get(name, default) for name, default in defaults}
+
+    return fast_values
+
+
+def _fast_hash(hash_):
+    """``TargetConfig.__hash__``, numba's ``hash(tuple(sorted(self.values())))``:
+    the sorted option names' hash (sorting a dict sorts its keys), once per
+    class where `_plain_options` knows the class."""
+    hashes = {}
+
+    @functools.wraps(hash_)
+    def fast_hash(self):
+        cls = type(self)
+        found = hashes.get(cls)
+        if found is None:
+            if _plain_options(cls) is None:
+                return hash_(self)
+            found = hashes[cls] = hash(tuple(sorted(cls.options)))
+        return found
+
+    return fast_hash
 
 
 def _run_untyped_passes_once(run_untyped):
