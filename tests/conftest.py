@@ -63,8 +63,8 @@ def pytest_sessionstart(session):
     """``pytest --update-golden`` runs ``softras golden --update`` in the repository's root
     (its ./scenes and ./golden, wherever pytest was started), then the tests.
 
-    Under pytest-xdist each worker first prepares its share of the compiled
-    kernels' variants (`softras.kernels.prepare`; a no-op once they are
+    Under pytest-xdist the workers first prepare the compiled kernels'
+    variants between them (`softras.kernels.prepare`; a no-op once they are
     ready): otherwise the first tests of every worker need the same variant
     and all but one worker wait on its lock while one core compiles."""
     worker, count = os.environ.get("PYTEST_XDIST_WORKER"), os.environ.get("PYTEST_XDIST_WORKER_COUNT")
@@ -72,27 +72,33 @@ def pytest_sessionstart(session):
         from softras.kernels import draw, prepare
 
         # Every variant: the tile drivers, exact precision's kernels and the
-        # line kernel.  Two workers: exact and the textured drivers (which
-        # share `_beyond_texel`, compiled once) on one, the untextured
-        # drivers and lines on the other, which then compiles the stages'
-        # loops too (their spec bounds render in exact precision: exact
-        # first on the other worker, ready by then): ~125-140 s of one core
-        # each from a cold cache.  xdist hands out no test before both
-        # workers have collected, so the longer share is the whole wait
-        # (docs/speed.md, "Thirty-fourth round": 171 s, the textured
-        # worker idle for 73 s, when exact was on the untextured one).
-        # More workers: every count-th variant.
-        shares = [[(1, False), (4, False), (0, False), prepare.LINES],
-                  [prepare.EXACT, (1, True), (0, True)]]
-        variants = [variant for share in shares for variant in share]
-        assert sorted(variants, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
-                                                            key=prepare.name)
-        index, count = int(worker.removeprefix("gw")), int(count)
-        mine = shares[index % 2] if count == 2 else variants[index % count::count]
-        for variant in mine:
-            prepare.prepare(variant)
-        if index == 0:                  # (two workers: the share that is ready ~20 s sooner)
+        # line kernel, handed out as the workers ask: each worker takes the
+        # next variant in this order that no other process is preparing
+        # (`prepare.prepare` without waiting for its lock), and waits only
+        # when every variant left is being prepared elsewhere.  Longest
+        # first; the untextured drivers after the one-sample one and the
+        # textured after theirs, so that a worker finds their shared
+        # callees already read.  The first worker begins with exact and
+        # then compiles the stages' loops (their spec bounds render in
+        # exact precision), the others with the one-sample drivers.  A
+        # variant prepared already (by the README's first command, in the
+        # background) is skipped, so the workers share what is left (docs/speed.md,
+        # "Thirty-eighth round": fixed shares left one worker idle while
+        # the other compiled; "Thirty-fourth round" before).
+        order = [prepare.EXACT, (1, False), (1, True), (4, False), (0, True), (0, False), prepare.LINES]
+        assert sorted(order, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
+                                                         key=prepare.name)
+        index = int(worker.removeprefix("gw"))
+        if index == 0:
+            prepare.prepare(prepare.EXACT)
             _compile_stage_loops()
+        else:
+            order.insert(0, order.pop(1 + (index - 1) % 2))
+        pending = order
+        while pending:
+            pending = [variant for variant in pending if not prepare.prepare(variant, wait=False)]
+            if pending:
+                prepare.prepare(pending[0])         # (all being prepared elsewhere: wait for one)
     if not session.config.getoption("--update-golden", default=False):
         return
     from softras.cli import main

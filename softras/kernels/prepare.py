@@ -280,7 +280,7 @@ def line_preparation_scene() -> dict:
                                                                [-1, 0.2, -2]]}}]}
 
 
-def prepare(variant) -> None:
+def prepare(variant, wait: bool = True) -> bool:
     """Compile ``variant`` now unless it is ready: under its lock, render
     `preparation_scene` on the compiled path (a tile driver (driver
     samples, textured): in gl precision, without lines, at 2 samples for
@@ -289,17 +289,21 @@ def prepare(variant) -> None:
     and an rgba32f framebuffer's box resolve of float32 samples
     (`softras.kernels.ops._resolve_box`); EXACT: textured, in exact
     precision, and the rgba32f resolve of float64 samples) or LINES
-    `line_preparation_scene` (gl precision), then mark it ready."""
+    `line_preparation_scene` (gl precision), then mark it ready.  Returns
+    whether it is ready; False only when ``wait`` is False and another
+    process holds the lock (is preparing it): then nothing is done."""
     if ready(variant):
-        return
+        return True
     from softras.kernels import draw
     from softras.kernels import ops as kernel_ops
     from softras.pipeline import ops, sampling
     from softras.scene import load_scene
 
-    with _locked(variant):
+    with _locked(variant, blocking=wait) as held:
+        if not held:
+            return False
         if ready(variant):                      # prepared by the process we waited for
-            return
+            return True
         if variant == EXACT:
             from softras.kernels import exact
             from softras.pipeline import render as stages
@@ -328,6 +332,7 @@ def prepare(variant) -> None:
             # are the driver's own, `softras.kernels.rgba32f._float_fragments`).
             kernel_ops._resolve_box(np.zeros((1, 1, 2, 4), np.float32), np.empty((1, 1, 4), np.float32))
         _mark(variant).touch()
+    return True
 
 
 # Called with `NOTICE` when a render starts a background preparation (the
