@@ -2,14 +2,15 @@
 
 numba compiles the kernels of `softras.kernels.draw` the first time a
 process needs them and keeps them in its on-disk cache; on a fresh clone
-(one core, one variant after another) that takes 24-46 s per untextured
-tile-driver variant (a sample count, textured or not), 44-90 s per
-textured one (the first pays for the filters and maps they share, and the
-one-sample driver inlines the texture code), ~64 s for the exact kernels
-(`softras.kernels.exact`, the variant `EXACT`) and ~12 s for the gl line
-kernel (`softras.kernels.lines`, the variant `LINES`): ~5.3 minutes in
-all since `softras.pipeline.numba_fixes` (7.4 minutes before;
-docs/speed.md, "Twenty-seventh round").  The readable stages give the
+(one core, each variant in a new process, one after another) that takes
+10-25 s per tile-driver variant (a sample count, textured or not; the
+first pays for the set-up, clipping and lighting kernels they share, the
+textured ones for the filters and maps), ~25 s for the exact kernels
+(`softras.kernels.exact`, the variant `EXACT`) and ~7 s for the gl line
+kernel (`softras.kernels.lines`, the variant `LINES`): ~2.1 minutes in
+all with `softras.pipeline.numba_fixes` (3.5 minutes with its first two
+fixes only; docs/speed.md, "Twenty-seventh round" and "Thirty-eighth
+round").  The readable stages give the
 same bytes (tests/test_fastpath.py, tests/test_exact_path.py) and
 compile in seconds, so a render need not wait: `ensure` either
 
