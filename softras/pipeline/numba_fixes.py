@@ -60,12 +60,12 @@ through the same two fixed-point iterations and returns the same sets.
 
 `install` swaps the name ``copy`` in the first two modules for an object
 whose ``deepcopy`` does this and hands everything else to `copy.deepcopy`,
-and wraps the three functions and the liveness (as `numba.core.postproc`
-calls it; numba's other callers keep numba's own).  It is called when `softras.pipeline` is
-imported, before any of softras's kernels compiles, and leaves numba as
-it is if its modules do not look as expected (then compiles are slower,
-nothing else).  ``SOFTRAS_NUMBA_FIXES=0`` turns
-it off, to measure it.  The compiled code is the same either way: every
+and wraps the functions of the others (the liveness as `numba.core.postproc`
+calls it; numba's other callers keep numba's own).  It is called when
+`softras.pipeline` is imported, before any of softras's kernels compiles,
+and leaves numba as it is if its modules do not look as expected (then
+compiles are slower, nothing else).  ``SOFTRAS_NUMBA_FIXES=0`` turns it
+off, to measure it.  The compiled code is the same either way: every
 variant's kernels compiled with and without gave the same assembly
 (docs/speed.md), and tests/test_numba_fixes.py compares one parallel
 loop's.
@@ -83,7 +83,8 @@ class _InlinerCopy:
     """The ``copy`` module as `numba.core.inline_closurecall` sees it: while
     an ``inline_ir`` call runs, ``deepcopy`` without a memo uses that call's
     one memo, and returns a block that it copied in that call as it is
-    (``made``: their ids; ``inline_ir``'s second, discarded copy) (`_inline_ir_sharing_one_memo`)."""
+    (``inline_ir``'s second copy, which its callers discard; ``made``: the
+    ids of the copies) (`_inline_ir_sharing_one_memo`)."""
 
     memo: dict | None = None
     made: set | None = None
