@@ -133,15 +133,20 @@ def test_numba_is_left_alone_where_it_is_not_as_expected():
         def values(self):
             return {}
 
+    class Scheme:
+        def _markup(self, msg, color=None, style="*"):
+            return msg
+
     def modules(inliner=True, passes=True, ssa=True, ir=True, analysis=True, config=True, worker=Worker):
-        """Stand-ins for numba's six modules, as expected unless one is False."""
+        """Stand-ins for numba's seven modules, as expected unless one is False."""
         return (SimpleNamespace(InlineWorker=worker, copy=copy) if inliner else SimpleNamespace(InlineWorker=worker),
                 SimpleNamespace(copy=copy, copy_propagate=None) if passes else SimpleNamespace(copy_propagate=None),
                 SimpleNamespace(_run_ssa=lambda blocks: blocks, _run_block_rewrite=lambda *args: None) if ssa
                 else SimpleNamespace(_run_ssa=None),
                 SimpleNamespace(Block=object) if ir else SimpleNamespace(),
                 SimpleNamespace(compute_live_map=lambda *args: {}) if analysis else SimpleNamespace(),
-                SimpleNamespace(TargetConfig=Config) if config else SimpleNamespace())
+                SimpleNamespace(TargetConfig=Config) if config else SimpleNamespace(),
+                SimpleNamespace(HighlightColorScheme=Scheme, Style=SimpleNamespace(RESET_ALL="!")))
 
     for unexpected in (modules(inliner=False), modules(passes=False), modules(worker=Bare), modules(ssa=False),
                        modules(ir=False), modules(analysis=False), modules(config=False),
@@ -150,11 +155,29 @@ def test_numba_is_left_alone_where_it_is_not_as_expected():
         assert not numba_fixes.install(*unexpected)
         assert Worker.inline_ir.__name__ == "inline_ir" and not hasattr(Worker.run_untyped_passes, "__wrapped__")
         assert [module.__dict__ for module in unexpected] == before
-    inliner, passes, ssa, ir, analysis, config = modules()
-    assert numba_fixes.install(inliner, passes, ssa, ir, analysis, config)         # (as expected: installed)
+    inliner, passes, ssa, ir, analysis, config, errors = modules()
+    assert numba_fixes.install(inliner, passes, ssa, ir, analysis, config, errors)         # (as expected: installed)
     assert Worker.inline_ir._softras and isinstance(inliner.copy, numba_fixes._InlinerCopy)
     assert all(hasattr(f, "__wrapped__") for f in (Worker.run_untyped_passes, ssa._run_ssa, ssa._run_block_rewrite,
-                                                   analysis.compute_live_map, Config.values, Config.__hash__))
+                                                   analysis.compute_live_map, Config.values, Config.__hash__,
+                                                   Scheme._markup))
+    assert Scheme()._markup("m", "<c>") == "<c>*m!"
+    fresh = type("Fresh", (), {"inline_ir": lambda self: None, "run_untyped_passes": lambda self: None})
+    inliner, passes, ssa, ir, analysis, config, _ = modules(worker=fresh)
+    assert numba_fixes.install(inliner, passes, ssa, ir, analysis, config, SimpleNamespace())   # (no colorama:
+    assert fresh.inline_ir._softras                                                             # the others)
+
+
+def test_error_messages_are_numbas_strings():
+    """numba's coloured message strings, the same without colorama's stream set-up."""
+    from numba.core import errors
+
+    markup = errors.HighlightColorScheme._markup
+    assert markup.__wrapped__ is not markup
+    scheme = errors.termcolor()
+    for args in (("Cannot determine Numba type",), ("a", errors.Fore.RED), ("x\u00e9y", None, None),
+                 ("", errors.Fore.BLUE, errors.Style.BRIGHT), ("line\nnext", None)):
+        assert markup(scheme, *args) == markup.__wrapped__(scheme, *args), args
 
 
 def test_compile_flags_give_numbas_values_hash_and_equality():

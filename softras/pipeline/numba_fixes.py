@@ -50,6 +50,14 @@ sorted option names, which is all numba's hashed), for the classes whose
 options are all numba's generated properties; any other class keeps
 numba's.
 
+One skips a terminal set-up that changes nothing: numba builds a
+coloured message for each overload it tries and rejects while typing a
+call (`numba.core.errors.HighlightColorScheme._markup`), and each set up
+colorama's stream wrappers and took them down again (54648 times in a
+driver's compile, ~2.5 % of it), though the message is the same string
+either way.  `_plain_markup` returns that string: the colour, the style,
+the message and colorama's reset, through UTF-8 as numba's did.
+
 And one does the same work with smaller sets: **liveness**
 (`numba.core.analysis.compute_live_map`, run by every ``PostProcessor``
 after a pass changed the IR) carried sets of variable names from block to
@@ -132,16 +140,18 @@ class _PassesCopy:
 _SSA_NAMES = ("_run_ssa", "_run_block_rewrite")
 
 
-def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=None) -> bool:
+def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=None, errors=None) -> bool:
     """Install the fixes (once) into numba's `numba.core.inline_closurecall`,
-    `numba.core.ir_utils`, `numba.core.ssa`, `numba.core.analysis` and
-    `numba.core.targetconfig` (or the modules given, for the tests; ``ir``:
-    `numba.core.ir`, ``config``: targetconfig); False, and nothing changed,
-    where they are off or the modules are not as expected."""
+    `numba.core.ir_utils`, `numba.core.ssa`, `numba.core.analysis`,
+    `numba.core.targetconfig` and `numba.core.errors` (or the modules
+    given, for the tests; ``ir``: `numba.core.ir`, ``config``:
+    targetconfig); False, and nothing changed, where they are off or the
+    modules are not as expected (numba's errors without colorama: that fix
+    alone left out)."""
     if os.environ.get("SOFTRAS_NUMBA_FIXES", "1") == "0":
         return False
     from numba.core import analysis as numba_analysis, inline_closurecall, ir as numba_ir, ir_utils, ssa as numba_ssa
-    from numba.core import targetconfig
+    from numba.core import errors as numba_errors, targetconfig
 
     inliner = inline_closurecall if inliner is None else inliner
     passes = ir_utils if passes is None else passes
@@ -149,6 +159,7 @@ def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=
     ir = numba_ir if ir is None else ir
     analysis = numba_analysis if analysis is None else analysis
     config = targetconfig if config is None else config
+    errors = numba_errors if errors is None else errors
     target_config = getattr(config, "TargetConfig", None)
     worker = getattr(inliner, "InlineWorker", None)
     inline_ir = getattr(worker, "inline_ir", None)
@@ -181,7 +192,27 @@ def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=
     analysis.compute_live_map = _live_map_with_bitsets(analysis.compute_live_map)
     target_config.values = _fast_values(target_config.values)
     target_config.__hash__ = _fast_hash(target_config.__hash__)
+    scheme = getattr(errors, "HighlightColorScheme", None)          # (only where colorama is installed)
+    markup = getattr(scheme, "_markup", None)
+    reset = getattr(getattr(errors, "Style", None), "RESET_ALL", None)
+    if callable(markup) and isinstance(reset, str) and markup.__defaults__ is not None \
+            and len(markup.__defaults__) == 2:
+        scheme._markup = _plain_markup(markup, reset)
     return True
+
+
+def _plain_markup(markup, reset: str):
+    """``HighlightColorScheme._markup(msg, color=None, style=<bright>)``
+    without colorama's stream set-up: the colour and style codes (those
+    given), the message and ``reset``, encoded to UTF-8 and decoded as
+    numba's (same defaults)."""
+
+    @functools.wraps(markup)
+    def plain_markup(self, msg, color=None, style=markup.__defaults__[1]):
+        features = (color or "") + (style or "")
+        return (features.encode("utf-8") + msg.encode("utf-8") + reset.encode("utf-8")).decode("utf-8")
+
+    return plain_markup
 
 
 @functools.cache
