@@ -56,7 +56,8 @@ call (`numba.core.errors.HighlightColorScheme._markup`), and each set up
 colorama's stream wrappers and took them down again (54648 times in a
 driver's compile, ~2.5 % of it), though the message is the same string
 either way.  `_plain_markup` returns that string: the colour, the style,
-the message and colorama's reset, through UTF-8 as numba's did.
+the message and colorama's reset, through UTF-8 as numba's did.  (Only
+where colorama is installed: without it numba's messages are plain.)
 
 And one does the same work with smaller sets: **liveness**
 (`numba.core.analysis.compute_live_map`, run by every ``PostProcessor``
