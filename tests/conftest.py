@@ -76,24 +76,22 @@ def pytest_sessionstart(session):
         # next variant in this order that no other process is preparing
         # (`prepare.prepare` without waiting for its lock), and waits only
         # when every variant left is being prepared elsewhere.  Longest
-        # first; the untextured drivers after the one-sample one and the
-        # textured after theirs, so that a worker finds their shared
-        # callees already read.  The first worker begins with exact and
-        # then compiles the stages' loops (their spec bounds render in
-        # exact precision), the others with the one-sample drivers.  A
-        # variant prepared already (by the README's first command, in the
-        # background) is skipped, so the workers share what is left (docs/speed.md,
-        # "Thirty-eighth round": fixed shares left one worker idle while
-        # the other compiled; "Thirty-fourth round" before).
+        # first.  The first worker begins with exact and then compiles the
+        # stages' loops (their spec bounds render in exact precision); the
+        # others leave exact to it (else one of them could take exact's lock
+        # first and the first worker would wait for it).  A variant
+        # prepared already (by the README's first command, in the
+        # background) is skipped, so the workers share what is left
+        # (docs/speed.md, "Thirty-eighth round": fixed shares left one
+        # worker idle while the other compiled; "Thirty-fourth round" before).
         order = [prepare.EXACT, (1, False), (1, True), (4, False), (0, True), (0, False), prepare.LINES]
         assert sorted(order, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
                                                          key=prepare.name)
-        index = int(worker.removeprefix("gw"))
-        if index == 0:
+        if worker == "gw0":
             prepare.prepare(prepare.EXACT)
             _compile_stage_loops()
         else:
-            order.insert(0, order.pop(1 + (index - 1) % 2))
+            order.append(order.pop(0))
         pending = order
         while pending:
             pending = [variant for variant in pending if not prepare.prepare(variant, wait=False)]
