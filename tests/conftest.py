@@ -36,10 +36,22 @@ def load_script(name: str):
 # command-line processes the tests start.
 os.environ["SOFTRAS_COMPILE"] = "wait"
 
+# Python's bytecode caches, written even where PYTHONDONTWRITEBYTECODE is
+# set (this machine's image sets it), by this process and the Python
+# processes the tests start (command lines, conformance workers, pytest runs
+# of the example projects): without them each compiled softras's sources
+# again (~0.08 s of a process's 0.85 s first render), and each pytest
+# rewrote the asserts of every test file again (a collection of the suite
+# 4.1 s, 1.65 s with the caches).  They go where Python keeps them, the
+# ignored __pycache__ folders beside the sources, where numba keeps the
+# compiled kernels too (docs/testing.md).
+sys.dont_write_bytecode = False
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+
 
 # The test files whose tests take longest (--durations with a warm cache:
 # the whole CI workflow run locally 21 s, a hang waiting for its timeout
-# 11 s, softpipe's conformance 9 s, pytest in subprocesses 4-8 s each):
+# 6 s, softpipe's conformance 9 s, pytest in subprocesses 4-8 s each):
 # run first.  pytest-xdist hands the tests out in collection order, so a
 # long test collected last ran alone at the end while the other worker
 # idled (19.5 s of the fresh-clone run, docs/speed.md, "Thirty-fourth
