@@ -193,7 +193,7 @@ def test_compile_flags_give_numbas_values_hash_and_equality():
     from numba.core.compiler import Flags
 
     values, hash_ = targetconfig.TargetConfig.values.__wrapped__, targetconfig.TargetConfig.__hash__.__wrapped__
-    plain, some, default, copied = Flags(), Flags(), Flags(), None
+    plain, some, default = Flags(), Flags(), Flags()
     some.nrt, some.error_model, some.enable_ssa = True, "numpy", False
     default.nrt = Flags.options["nrt"].default
     copied = Flags(some)

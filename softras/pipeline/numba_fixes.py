@@ -171,7 +171,7 @@ def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=
             or getattr(passes, "copy", None) is not copy or not hasattr(passes, "copy_propagate") \
             or not all(hasattr(ssa, name) for name in _SSA_NAMES) or not hasattr(ir, "Block") \
             or not hasattr(analysis, "compute_live_map") \
-            or not all(callable(getattr(target_config, name, None)) for name in ("values", "__hash__", "__eq__")):
+            or not all(callable(getattr(target_config, name, None)) for name in ("values", "__hash__")):
         return False
     shared = _InlinerCopy()
 
@@ -248,21 +248,21 @@ def _fast_values(values):
     return fast_values
 
 
+@functools.cache
+def _names_hash(cls) -> int | None:
+    """numba's hash of flags of the class ``cls``: that of its sorted option
+    names (all that ``hash(tuple(sorted(self.values())))`` hashes: sorting a
+    dict sorts its keys), where `_plain_options` knows the class; else None."""
+    return None if _plain_options(cls) is None else hash(tuple(sorted(cls.options)))
+
+
 def _fast_hash(hash_):
-    """``TargetConfig.__hash__``, numba's ``hash(tuple(sorted(self.values())))``:
-    the sorted option names' hash (sorting a dict sorts its keys), once per
-    class where `_plain_options` knows the class."""
-    hashes = {}
+    """``TargetConfig.__hash__``: `_names_hash`, numba's where that is None."""
 
     @functools.wraps(hash_)
     def fast_hash(self):
-        cls = type(self)
-        found = hashes.get(cls)
-        if found is None:
-            if _plain_options(cls) is None:
-                return hash_(self)
-            found = hashes[cls] = hash(tuple(sorted(cls.options)))
-        return found
+        found = _names_hash(type(self))
+        return hash_(self) if found is None else found
 
     return fast_hash
 
