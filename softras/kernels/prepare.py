@@ -46,6 +46,7 @@ import argparse
 import contextlib
 import fcntl
 import functools
+import gc
 import hashlib
 import os
 import subprocess
@@ -212,6 +213,28 @@ def _in_index(kernel) -> bool:
 
 
 @contextlib.contextmanager
+def _full_collections_held_off():
+    """Python's full garbage collections held off for the block, and one
+    run after it.  numba's compilation leaves hundreds of thousands of
+    long-lived objects (its type and overload caches, typed IR, llvmlite's
+    wrappers: ~750k after one variant in a fresh cache), and Python runs a
+    full collection, which walks every one of them, each time the objects
+    that survived the young generations have grown by a quarter: 20 full
+    collections, 5.0 s of a 27 s compile of the 4u variant.  The young
+    generations still collect (most of numba's garbage dies young); what
+    reaches the oldest one is collected once, at the end.  The 4u variant
+    in a fresh cache: 27.2-27.5 s, 22.6-23.2 s so; peak memory 446 -> 550
+    MB (docs/speed.md, "Fortieth round")."""
+    thresholds = gc.get_threshold()
+    gc.set_threshold(thresholds[0], thresholds[1], 1 << 30)
+    try:
+        yield
+    finally:
+        gc.set_threshold(*thresholds)
+        gc.collect()
+
+
+@contextlib.contextmanager
 def _locked(variant, blocking: bool = True):
     """An exclusive lock on preparing ``variant``: yields True when held,
     False when another process holds it and ``blocking`` is False."""
@@ -295,45 +318,52 @@ def prepare(variant, wait: bool = True) -> bool:
     process holds the lock (is preparing it): then nothing is done."""
     if ready(variant):
         return True
-    from softras.kernels import draw
-    from softras.kernels import ops as kernel_ops
-    from softras.pipeline import ops, sampling
-    from softras.scene import load_scene
-
     with _locked(variant, blocking=wait) as held:
         if not held:
             return False
         if ready(variant):                      # prepared by the process we waited for
             return True
-        if variant == EXACT:
-            from softras.kernels import exact
-            from softras.pipeline import render as stages
-
-            scene = load_scene(preparation_scene(1, True))
-            job = stages.Job.of(scene, precision="exact", samples=None, pattern=None, seed=0, resolve_filter="box",
-                                framebuffer=None, clipping=None, texture_fixed_point=True, texture_filter=None,
-                                texture_bounds=None, tie_rule="left_bottom")
-            exact.resolve(job, exact.render_samples(scene, job, reuse=True))
-            kernel_ops._resolve_box(np.zeros((1, 1, 2, 4)), np.empty((1, 1, 4), np.float32))
-        elif variant == LINES:
-            # (One sample: MSAA's rectangular lines are the same compiled
-            # function, a flag at run time.)
-            draw.render_samples(load_scene(line_preparation_scene()), sampling.sample_positions(1))
-        else:
-            samples, textured = variant
-            positions = (sampling.sample_positions(samples) if samples else
-                         sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)
-            scene = load_scene(preparation_scene(samples or 1, textured, lines=False))    # (a scene has 1 or 4)
-            assert draw.unsupported(scene, precision="gl", clipping=None) is None
-            stored = draw.render_samples(scene, positions)
-            if len(positions) > 1:      # the box resolves: llvmpipe's (GL's patterns) and the exact mean's
-                ops.resolve_llvmpipe_bytes(stored)
-                ops.resolve_exact_bytes(stored)
-            # An rgba32f framebuffer's box resolve (its colours and writes
-            # are the driver's own, `softras.kernels.rgba32f._float_fragments`).
-            kernel_ops._resolve_box(np.zeros((1, 1, 2, 4), np.float32), np.empty((1, 1, 4), np.float32))
+        with _full_collections_held_off():
+            _compile(variant)
         _mark(variant).touch()
     return True
+
+
+def _compile(variant) -> None:
+    """Render what reaches every kernel of ``variant`` (`prepare`), which
+    numba compiles (or loads from its cache)."""
+    from softras.kernels import draw
+    from softras.kernels import ops as kernel_ops
+    from softras.pipeline import ops, sampling
+    from softras.scene import load_scene
+
+    if variant == EXACT:
+        from softras.kernels import exact
+        from softras.pipeline import render as stages
+
+        scene = load_scene(preparation_scene(1, True))
+        job = stages.Job.of(scene, precision="exact", samples=None, pattern=None, seed=0, resolve_filter="box",
+                            framebuffer=None, clipping=None, texture_fixed_point=True, texture_filter=None,
+                            texture_bounds=None, tie_rule="left_bottom")
+        exact.resolve(job, exact.render_samples(scene, job, reuse=True))
+        kernel_ops._resolve_box(np.zeros((1, 1, 2, 4)), np.empty((1, 1, 4), np.float32))
+    elif variant == LINES:
+        # (One sample: MSAA's rectangular lines are the same compiled
+        # function, a flag at run time.)
+        draw.render_samples(load_scene(line_preparation_scene()), sampling.sample_positions(1))
+    else:
+        samples, textured = variant
+        positions = (sampling.sample_positions(samples) if samples else
+                     sampling.sample_positions(2, "halton"))          # (`softras.kernels.draw.ANY_SAMPLES`)
+        scene = load_scene(preparation_scene(samples or 1, textured, lines=False))    # (a scene has 1 or 4)
+        assert draw.unsupported(scene, precision="gl", clipping=None) is None
+        stored = draw.render_samples(scene, positions)
+        if len(positions) > 1:      # the box resolves: llvmpipe's (GL's patterns) and the exact mean's
+            ops.resolve_llvmpipe_bytes(stored)
+            ops.resolve_exact_bytes(stored)
+        # An rgba32f framebuffer's box resolve (its colours and writes
+        # are the driver's own, `softras.kernels.rgba32f._float_fragments`).
+        kernel_ops._resolve_box(np.zeros((1, 1, 2, 4), np.float32), np.empty((1, 1, 4), np.float32))
 
 
 # Called with `NOTICE` when a render starts a background preparation (the
