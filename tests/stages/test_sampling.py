@@ -69,6 +69,11 @@ def test_poisson_disk_keeps_its_distance_and_is_seeded():
     # nearest pair ~0.01 apart.
     assert dist.min() > 0.5 * np.sqrt(2 / (np.sqrt(3) * 64))
     np.testing.assert_array_equal(p, sampling.poisson_disk(64, seed=5))
+    # (The points of a first call are kept: a caller's writes to its array
+    # reach no later call.)
+    p += 1.0
+    assert sampling.poisson_disk(64, seed=5).max() < 1.0
+    assert not np.array_equal(sampling.poisson_disk(64, seed=6), sampling.poisson_disk(64, seed=5))
 
 
 @pytest.mark.parametrize("samples, pattern, message", [
