@@ -70,10 +70,11 @@ def pytest_collection_finish(session):
     """What is there now stays to the end of the session: the compiled
     kernels the workers prepared or loaded (~750k objects of numba's after
     a preparation), the modules, the collected tests.  Python's full
-    garbage collections walked all of it, again and again: 16.5 and 29.6 s
-    of the two workers' CPU in a fresh clone's run, 1.1 and 5.4 s with a
-    warm cache, and pytest's five collections at the end of each worker.
-    Frozen, they walk only what the tests make (docs/testing.md)."""
+    garbage collections walked all of it, again and again: ~3.9 and ~12.3
+    s of the two workers' CPU during the tests of a fresh clone's run (1.5
+    and 4.0 s frozen), and pytest's five collections at the end of each
+    worker ~6 s (~1 s frozen).  Frozen, they walk only what the tests make
+    (docs/testing.md)."""
     gc.collect()
     gc.freeze()
 

@@ -223,8 +223,9 @@ def _full_collections_held_off():
     collections, 5.0 s of a 27 s compile of the 4u variant.  The young
     generations still collect (most of numba's garbage dies young); what
     reaches the oldest one is collected once, at the end.  The 4u variant
-    in a fresh cache: 27.2-27.5 s, 22.6-23.2 s so; peak memory 446 -> 550
-    MB (docs/speed.md, "Fortieth round")."""
+    in a fresh cache: 27.2-27.5 s, 22.6-24.5 s so; peak memory 446 -> 550
+    MB.  All seven variants in one process: 128-129 s, 111-119 s so
+    (docs/speed.md, "Fortieth round")."""
     thresholds = gc.get_threshold()
     gc.set_threshold(thresholds[0], thresholds[1], 1 << 30)
     try:
