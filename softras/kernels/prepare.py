@@ -225,7 +225,10 @@ def _full_collections_held_off():
     reaches the oldest one is collected once, at the end.  The 4u variant
     in a fresh cache: 27.2-27.5 s, 22.6-24.5 s so; peak memory 446 -> 550
     MB.  All seven variants in one process: 128-129 s, 111-119 s so
-    (docs/speed.md, "Fortieth round")."""
+    (docs/speed.md, "Fortieth round").  Not the loader's
+    `softras.scene.parse.collector_paused`, the collector off altogether:
+    numba's young garbage then piles up too (4u: 23.4-24.2 s, 648 MB), and
+    that pause leaves the old garbage to the next collection."""
     thresholds = gc.get_threshold()
     gc.set_threshold(thresholds[0], thresholds[1], 1 << 30)
     try:

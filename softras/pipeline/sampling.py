@@ -137,6 +137,7 @@ def poisson_disk(samples: int, seed: int = 0, max_rejections: int = 1000) -> np.
 
 @functools.lru_cache(maxsize=32)
 def _poisson_points(samples: int, seed: int, max_rejections: int) -> np.ndarray:
+    """`poisson_disk`'s darts, kept per arguments: a read-only (samples, 2) array."""
     rng = np.random.default_rng(seed)
     radius = 0.9 * math.sqrt(2.0 / (math.sqrt(3.0) * samples))
     points = np.empty((samples, 2))
