@@ -328,6 +328,25 @@ def test_a_compile_runs_no_full_collection_and_one_after(fresh_cache, monkeypatc
     assert gc.get_threshold() == thresholds and prepare.ready((1, False))
 
 
+def test_the_prepare_command_freezes_what_each_variant_left(fresh_cache, monkeypatch):
+    """``python -m softras.kernels.prepare`` compiles its variants one after
+    another in one process: what a compile left alive (numba's compiled
+    objects) is frozen before the next compile, whose collections then do
+    not walk it again."""
+    kept, frozen = [], []
+
+    def compile_(variant):
+        frozen.append(gc.get_freeze_count())
+        kept.append([[] for _ in range(50_000)])      # (no cycles: freed by reference counting after the test)
+
+    monkeypatch.setattr(prepare, "_compile", compile_)
+    try:
+        assert prepare.main(["1u", "4u"]) == 0
+        assert frozen[1] - frozen[0] >= 50_000
+    finally:
+        kept.clear()
+
+
 def test_the_prepare_command_marks_its_variants(fresh_cache):
     assert prepare.main(["1u"]) == 0
     assert prepare.ready((1, False)) and not prepare.ready((1, True))
