@@ -116,7 +116,7 @@ def pytest_sessionstart(session):
         if worker == "gw0":
             _prepare(prepare.EXACT)
             _compile_stage_loops()
-            gc.collect()
+            gc.collect()                        # (their renders leave garbage: freed, then the rest frozen)
             gc.freeze()
         else:
             order.append(order.pop(0))
