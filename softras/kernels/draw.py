@@ -536,9 +536,11 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
         if row_runs and by_rows:
+            tile_x0 = (tile % bins.tiles_x) * TILE
+            tile_x1 = min(tile_x0 + TILE, depth.shape[1]) - 1
             for y in range(y_start, y_end + 1):
                 _flat_row(x_start, x_end, y, edges, offsets, t, tri_f, colors, positions, depths, words, floats,
-                          depth.shape[1], state, n_samples)
+                          depth.shape[1], state, n_samples, tile_x0, tile_x1)
             continue
         # The units k = 0 .. n_units - 1: at one sample the box's pixel rows
         # (`_list_row`), else its 8x8 blocks row by row; and k = n_units to
@@ -821,7 +823,7 @@ def _float_rows(state):
 
 @numba.njit(error_model="numpy", inline="always")
 def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, words, floats, width, state,
-              n_samples):
+              n_samples, tile_x0, tile_x1):
     """`_flat_block` of an unlit, untextured triangle t's fragments in pixels
     x0..x1 of row py at 1 or 4 samples a pixel (n_samples, a constant),
     without alpha test, into an RGBA8 buffer (or at one sample an rgba32f
@@ -836,7 +838,8 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
     draws get a copy of the pixel loop with their depth test, blend and
     shading constants (so that LLVM vectorises it): "less" with depth writes
     and no blend, interpolated or flat (one sample), and no depth with
-    "over" (rgba32f: that one alone)."""
+    "over" (rgba32f: that one alone).  tile_x0, tile_x1 : the columns of the
+    tile (`_padded_run`)."""
     # The runs as one flat tuple (lo, hi, ...) a sample (numba's array
     # analysis fails on a tuple of tuples indexed in a loop).  (The two
     # branches give tuples of different types: only the drivers of 1 and 4
@@ -869,24 +872,45 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
     if n_samples == 1 and state.rgba32f:     # (`_float_rows`: no depth, "over", interpolated)
         _row_floats_over(start, end, py, corners, corner_colors, floats, width)
     elif depth_func == LESS and write_z and blend == 0 and not flat:
-        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, True,
-                    LESS, True, 0, False, n_samples)
+        _row_pixels(start, end, start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
+                    width, True, LESS, True, 0, False, n_samples)
     elif depth_func == LESS and write_z and blend == 0 and n_samples == 1:
-        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, True,
-                    LESS, True, 0, True, n_samples)
+        _row_pixels(start, end, start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
+                    width, True, LESS, True, 0, True, n_samples)
     elif not _uses_depth(depth_func, write_z) and blend == 1 and not flat:
-        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, False,
-                    0, False, 1, False, n_samples)
+        first, last = _padded_run(start, end, tile_x0, tile_x1)
+        _row_pixels(start, end, first, last, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
+                    width, False, 0, False, 1, False, n_samples)
     else:
-        _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width,
-                    _uses_depth(depth_func, write_z), depth_func, write_z, blend, flat, n_samples)
+        _row_pixels(start, end, start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
+                    width, _uses_depth(depth_func, write_z), depth_func, write_z, blend, flat, n_samples)
+
+
+@numba.njit(cache=True, inline="always")
+def _padded_run(start, end, tile_x0, tile_x1):
+    """The pixels first..last that a row's run start..end is computed over:
+    the run widened to whole vectors of `softras.kernels.lanes.VECTOR`
+    pixels within the tile's columns tile_x0..tile_x1 (LLVM compiles the
+    row loop to vectors of that many pixels and a remainder taken pixel by
+    pixel, each with its own three divisions).  The pixels added are this
+    share's (a tile belongs to one) and are written back as stored.  Only
+    the copy for "over" without depth takes it: blended_8x128_512 on one
+    thread 5.81-6.01 -> 4.93-4.97 ms, its grids of 16,384 triangles
+    12.0-12.2 -> 10.8 ms; the depth-tested copies took it and got slower
+    on small triangles (many_small_24k_512 4.7-4.8 -> 5.7-9.1 ms;
+    docs/speed.md, "Forty-first round")."""
+    count = _whole_vectors(end - start + 1)
+    first = max(min(start, tile_x1 - count + 1), tile_x0)
+    return first, min(first + count - 1, tile_x1)
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words, width, use_depth,
-                depth_func, write_z, blend, flat, n_samples):
+def _row_pixels(start, end, first, last, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
+                width, use_depth, depth_func, write_z, blend, flat, n_samples):
     """Pixels start..end of row py, sample s of pixel px covered where
-    runs[2 s] <= px - x0 <= runs[2 s + 1] (one sample: `_row_pixels_1`): the
+    runs[2 s] <= px - x0 <= runs[2 s + 1] (one sample: `_row_pixels_1`),
+    computed over first..last (`_padded_run`: its pixels outside the run
+    written back as they are stored): the
     steps of `_flat_block` per pixel, with the same operations in the same
     order (the pixels are distinct, so their order does not matter):
     perspective weights (`_weights_at`) at the pixel centre and the colour
@@ -908,12 +932,12 @@ def _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positio
     integer, so that numba adds no test for negative indices and the loads
     and stores are seen to be consecutive."""
     if n_samples == 1:
-        _row_pixels_1(start, end, py, corners, corner_colors, plane, positions, depths, words, width, use_depth,
-                      depth_func, write_z, blend, flat)
+        _row_pixels_1(start, end, first, last, py, corners, corner_colors, plane, positions, depths, words, width,
+                      use_depth, depth_func, write_z, blend, flat)
         return
     fx0, fy0, z0, dzdx, dzdy = plane
     cy = py + 0.5
-    for px in range(start, end + 1):
+    for px in range(first, last + 1):
         w = (1.0, 0.0, 0.0)
         if not flat:
             w = _weights_at(corners, px + 0.5, cy)
@@ -938,23 +962,23 @@ def _row_pixels(start, end, py, runs, x0, corners, corner_colors, plane, positio
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _row_pixels_1(start, end, py, corners, corner_colors, plane, positions, depths, words, width, use_depth,
-                  depth_func, write_z, blend, flat):
-    """`_row_pixels` at one sample a pixel, every pixel covered: the same
-    steps without the loop over the samples (with it LLVM vectorised the
-    row's last pixels no more: the blended layers' gain of this path was
-    lost, 8.4 -> 9.4 ms on one thread)."""
+def _row_pixels_1(start, end, first, last, py, corners, corner_colors, plane, positions, depths, words, width,
+                  use_depth, depth_func, write_z, blend, flat):
+    """`_row_pixels` at one sample a pixel, every pixel of start..end
+    covered: the same steps without the loop over the samples (with it
+    LLVM vectorised the row's last pixels no more: the blended layers' gain
+    of this path was lost, 8.4 -> 9.4 ms on one thread)."""
     fx0, fy0, z0, dzdx, dzdy = plane
     row = py * width
     zy = (py + positions[1]) - fy0
     cy = py + 0.5
-    for px in range(start, end + 1):
+    for px in range(first, last + 1):
         i = np.uint64(row + px)
-        keep = np.int64(-1)                         # all ones: the pixel passed
+        keep = -np.int64((start <= px) & (px <= end))      # all ones: a pixel of the run (and, below, passed)
         if use_depth:
             k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * zy)
             stored = depths[i]
-            keep = -np.int64(_depth_pass_k(depth_func, k, stored))
+            keep &= -np.int64(_depth_pass_k(depth_func, k, stored))
             if write_z:
                 depths[i] = np.int32((k & keep) | (stored & ~keep))
         w = (1.0, 0.0, 0.0)
