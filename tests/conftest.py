@@ -110,11 +110,12 @@ def pytest_sessionstart(session):
         # background) is skipped, so the workers share what is left
         # (docs/speed.md, "Thirty-eighth round": fixed shares left one
         # worker idle while the other compiled; "Thirty-fourth round" before).
+        # What each compile leaves is frozen after it (``freeze``).
         order = [prepare.EXACT, (1, False), (1, True), (4, False), (0, True), (0, False), prepare.LINES]
         assert sorted(order, key=prepare.name) == sorted([*draw._DRAW_TILES, prepare.EXACT, prepare.LINES],
                                                          key=prepare.name)
         if worker == "gw0":
-            _prepare(prepare.EXACT)
+            prepare.prepare(prepare.EXACT, freeze=True)
             _compile_stage_loops()
             gc.collect()                        # (their renders leave garbage: freed, then the rest frozen)
             gc.freeze()
@@ -122,9 +123,9 @@ def pytest_sessionstart(session):
             order.append(order.pop(0))
         pending = order
         while pending:
-            pending = [variant for variant in pending if not _prepare(variant, wait=False)]
+            pending = [variant for variant in pending if not prepare.prepare(variant, wait=False, freeze=True)]
             if pending:
-                _prepare(pending[0])         # (all being prepared elsewhere: wait for one)
+                prepare.prepare(pending[0], freeze=True)    # (all being prepared elsewhere: wait for one)
     if not session.config.getoption("--update-golden", default=False):
         return
     from softras.cli import main
@@ -133,20 +134,6 @@ def pytest_sessionstart(session):
         status = main(["golden", "--update"])
     if status != 0:
         pytest.exit(f"softras golden --update failed (exit status {status})", returncode=status)
-
-
-def _prepare(variant, wait: bool = True) -> bool:
-    """`softras.kernels.prepare.prepare`, then what is there frozen (its full
-    collection at the end has just run): the compiled kernels live to the
-    end of the session, and the full collection that ends the next
-    variant's compile walks only what that compile left.  Four variants
-    one after another in one process, a fresh cache: the collector's time
-    10.5 -> 7.4 s (docs/speed.md, "Forty-first round")."""
-    from softras.kernels import prepare
-
-    done = prepare.prepare(variant, wait=wait)
-    gc.freeze()
-    return done
 
 
 def _compile_stage_loops() -> None:

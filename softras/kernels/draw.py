@@ -99,7 +99,7 @@ from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_c
 from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
                                  _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
-                                       _list_row, _list_whole_block, _row_run, _tile_box)
+                                       _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
 from softras.kernels.rgba32f import _float_fragments, _row_floats_over
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, Clipped,
@@ -531,13 +531,12 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     floats = color_f.reshape(-1)            # (an rgba32f buffer's floats, a pixel's four after another)
     full_mask = (1 << n_samples) - 1
     box = samples.box
+    tile_x0, tile_x1 = _tile_columns(tile, bins.tiles_x, depth.shape[1])        # (`_padded_run`)
     for j in range(bin_start[tile], bin_start[tile + 1]):
         t = bin_tri[j]
         edges = _edges(tri_i, t)
         x_start, x_end, y_start, y_end = _tile_box(tile, bins.tiles_x, bbox, t, depth)
         if row_runs and by_rows:
-            tile_x0 = (tile % bins.tiles_x) * TILE
-            tile_x1 = min(tile_x0 + TILE, depth.shape[1]) - 1
             for y in range(y_start, y_end + 1):
                 _flat_row(x_start, x_end, y, edges, offsets, t, tri_f, colors, positions, depths, words, floats,
                           depth.shape[1], state, n_samples, tile_x0, tile_x1)
@@ -872,18 +871,18 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
     if n_samples == 1 and state.rgba32f:     # (`_float_rows`: no depth, "over", interpolated)
         _row_floats_over(start, end, py, corners, corner_colors, floats, width)
     elif depth_func == LESS and write_z and blend == 0 and not flat:
-        _row_pixels(start, end, start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
-                    width, True, LESS, True, 0, False, n_samples)
+        _row_pixels(start, end, start, end, False, py, runs, x0, corners, corner_colors, plane, positions,
+                    depths, words, width, True, LESS, True, 0, False, n_samples)
     elif depth_func == LESS and write_z and blend == 0 and n_samples == 1:
-        _row_pixels(start, end, start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
-                    width, True, LESS, True, 0, True, n_samples)
+        _row_pixels(start, end, start, end, False, py, runs, x0, corners, corner_colors, plane, positions,
+                    depths, words, width, True, LESS, True, 0, True, n_samples)
     elif not _uses_depth(depth_func, write_z) and blend == 1 and not flat:
         first, last = _padded_run(start, end, tile_x0, tile_x1)
-        _row_pixels(start, end, first, last, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
-                    width, False, 0, False, 1, False, n_samples)
+        _row_pixels(start, end, first, last, True, py, runs, x0, corners, corner_colors, plane, positions,
+                    depths, words, width, False, 0, False, 1, False, n_samples)
     else:
-        _row_pixels(start, end, start, end, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
-                    width, _uses_depth(depth_func, write_z), depth_func, write_z, blend, flat, n_samples)
+        _row_pixels(start, end, start, end, False, py, runs, x0, corners, corner_colors, plane, positions,
+                    depths, words, width, _uses_depth(depth_func, write_z), depth_func, write_z, blend, flat, n_samples)
 
 
 @numba.njit(cache=True, inline="always")
@@ -906,12 +905,13 @@ def _padded_run(start, end, tile_x0, tile_x1):
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _row_pixels(start, end, first, last, py, runs, x0, corners, corner_colors, plane, positions, depths, words,
-                width, use_depth, depth_func, write_z, blend, flat, n_samples):
+def _row_pixels(start, end, first, last, widened, py, runs, x0, corners, corner_colors, plane, positions, depths,
+                words, width, use_depth, depth_func, write_z, blend, flat, n_samples):
     """Pixels start..end of row py, sample s of pixel px covered where
     runs[2 s] <= px - x0 <= runs[2 s + 1] (one sample: `_row_pixels_1`),
-    computed over first..last (`_padded_run`: its pixels outside the run
-    written back as they are stored): the
+    computed over first..last: with ``widened`` (a constant) `_padded_run`'s
+    pixels, those outside the run written back as they are stored, else
+    start..end itself: the
     steps of `_flat_block` per pixel, with the same operations in the same
     order (the pixels are distinct, so their order does not matter):
     perspective weights (`_weights_at`) at the pixel centre and the colour
@@ -933,8 +933,8 @@ def _row_pixels(start, end, first, last, py, runs, x0, corners, corner_colors, p
     integer, so that numba adds no test for negative indices and the loads
     and stores are seen to be consecutive."""
     if n_samples == 1:
-        _row_pixels_1(start, end, first, last, py, corners, corner_colors, plane, positions, depths, words, width,
-                      use_depth, depth_func, write_z, blend, flat)
+        _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, plane, positions, depths, words,
+                      width, use_depth, depth_func, write_z, blend, flat)
         return
     fx0, fy0, z0, dzdx, dzdy = plane
     cy = py + 0.5
@@ -963,8 +963,8 @@ def _row_pixels(start, end, first, last, py, runs, x0, corners, corner_colors, p
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _row_pixels_1(start, end, first, last, py, corners, corner_colors, plane, positions, depths, words, width,
-                  use_depth, depth_func, write_z, blend, flat):
+def _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, plane, positions, depths, words,
+                  width, use_depth, depth_func, write_z, blend, flat):
     """`_row_pixels` at one sample a pixel, every pixel of start..end
     covered: the same steps without the loop over the samples (with it
     LLVM vectorised the row's last pixels no more: the blended layers' gain
@@ -975,7 +975,9 @@ def _row_pixels_1(start, end, first, last, py, corners, corner_colors, plane, po
     cy = py + 0.5
     for px in range(first, last + 1):
         i = np.uint64(row + px)
-        keep = -np.int64((start <= px) & (px <= end))      # all ones: a pixel of the run (and, below, passed)
+        keep = np.int64(-1)                         # all ones: the pixel passed
+        if widened:                                 # (and is the run's: a test the others would pay for)
+            keep = -np.int64((start <= px) & (px <= end))
         if use_depth:
             k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * zy)
             stored = depths[i]

@@ -308,7 +308,7 @@ def line_preparation_scene() -> dict:
                                                                [-1, 0.2, -2]]}}]}
 
 
-def prepare(variant, wait: bool = True) -> bool:
+def prepare(variant, wait: bool = True, freeze: bool = False) -> bool:
     """Compile ``variant`` now unless it is ready: under its lock, render
     `preparation_scene` on the compiled path (a tile driver (driver
     samples, textured): in gl precision, without lines, at 2 samples for
@@ -319,7 +319,15 @@ def prepare(variant, wait: bool = True) -> bool:
     precision, and the rgba32f resolve of float64 samples) or LINES
     `line_preparation_scene` (gl precision), then mark it ready.  Returns
     whether it is ready; False only when ``wait`` is False and another
-    process holds the lock (is preparing it): then nothing is done."""
+    process holds the lock (is preparing it): then nothing is done.
+
+    freeze : after a compile and its full collection, what this process
+    holds is frozen (`gc.freeze()`): what the compile left alive lives as
+    long as the process, and the next variant's collections then do not
+    walk it again (four variants in a fresh cache: the collector's time
+    10.5 -> 7.4 s, docs/speed.md, "Forty-first round").  Only for the
+    processes of softras's own that compile several variants in a row (the
+    prepare command, the test suite's workers), never a user's."""
     if ready(variant):
         return True
     with _locked(variant, blocking=wait) as held:
@@ -329,6 +337,8 @@ def prepare(variant, wait: bool = True) -> bool:
             return True
         with _full_collections_held_off():
             _compile(variant)
+        if freeze:
+            gc.freeze()
         _mark(variant).touch()
     return True
 
@@ -448,13 +458,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         parser.error(str(error))                # (one line, exit status 2)
     for variant in chosen:
-        prepare(variant)
-        # (This process's own collector: what a compile left alive, after
-        # its full collection, lives as long as the process.  Frozen, the
-        # next variant's collections do not walk it again: four variants
-        # in a fresh cache, the collector's time 10.5 -> 7.4 s, docs/speed.md,
-        # "Forty-first round".)
-        gc.freeze()
+        prepare(variant, freeze=True)
     return 0
 
 

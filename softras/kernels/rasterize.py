@@ -291,11 +291,18 @@ def _list_pixels(n, bx, bx1, by, by1, all_in, edges, offsets, full_mask, rows, l
 
 
 @numba.njit(error_model="numpy", inline="always")
+def _tile_columns(tile, tiles_x, width):
+    """The tile's first and last pixel column in a picture ``width`` wide."""
+    tx0 = (tile % tiles_x) * TILE
+    return tx0, min(tx0 + TILE, width) - 1
+
+
+@numba.njit(error_model="numpy", inline="always")
 def _tile_box(tile, tiles_x, bbox, t, depth):
     """Triangle t's pixel bounding box (its bbox row) within the tile: first
     and last column, first and last row."""
     height, width = depth.shape[0], depth.shape[1]
-    tx0 = (tile % tiles_x) * TILE
+    tx0, tx1 = _tile_columns(tile, tiles_x, width)
     ty0 = (tile // tiles_x) * TILE
-    return (max(bbox[t, 0], tx0), min(bbox[t, 1], min(tx0 + TILE, width) - 1),
+    return (max(bbox[t, 0], tx0), min(bbox[t, 1], tx1),
             max(bbox[t, 2], ty0), min(bbox[t, 3], min(ty0 + TILE, height) - 1))
