@@ -29,6 +29,7 @@ from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, 
                                    _LF_W, _LI_WORD)
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import fragment, libm, vertex
+from softras.pipeline import ops as ops_stage
 from softras.pipeline.libm import _power_by, _whole_exponent
 
 # The eye (world space) and the material's Blinn-Phong terms, as scalars.
@@ -224,20 +225,34 @@ def _light_term(c, diffuse, n_dot_l, base, spec):
     return term if n_dot_l > 0 else 0.0
 
 
-@numba.njit(error_model="numpy")
-def _phong_words(n, t, colors, lit, lf, li, lights, lighting, textured, mapped):
-    """The fragment colour of the n lanes of triangle t, Phong-shaded (with
-    the normal or bump map's normals of the _LF_MAP rows when ``mapped``), as
-    llvmpipe's bytes: the lit colour (`_phong_colors`) times the _LF_TEX
-    texel when textured (`softras.kernels.interpolate._color_word`), one
-    RGBA8 word each into the _LI_WORD row."""
-    _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped)
-    for l in range(n):
-        texel = RGBA(1.0, 1.0, 1.0, 1.0)
-        if textured:
-            texel = RGBA(lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l])
-        li[_LI_WORD, l] = _color_word(lf[_LF_LIT, l], lf[_LF_LIT + 1, l], lf[_LF_LIT + 2, l], lf[_LF_LIT + 3, l],
-                                      texel)
+def _make_phong_words(sources: str):
+    """The kernel `_phong_words`, cached under the key ``sources``
+    (`softras.kernels.stamp.sources_stamp`, a closure variable: it inlines
+    this folder's kernels, `softras.pipeline.libm`'s pow and
+    `softras.pipeline.ops`' rounding).  Every tile
+    driver calls it, and uncached each variant compiled it again, 0.9-2.5 s
+    a variant (docs/speed.md, "Forty-second round")."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def _phong_words(n, t, colors, lit, lf, li, lights, lighting, textured, mapped):
+        """The fragment colour of the n lanes of triangle t, Phong-shaded (with
+        the normal or bump map's normals of the _LF_MAP rows when ``mapped``), as
+        llvmpipe's bytes: the lit colour (`_phong_colors`) times the _LF_TEX
+        texel when textured (`softras.kernels.interpolate._color_word`), one
+        RGBA8 word each into the _LI_WORD row."""
+        stamp = sources                 # noqa: F841  (the cache key)
+        _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped)
+        for l in range(n):
+            texel = RGBA(1.0, 1.0, 1.0, 1.0)
+            if textured:
+                texel = RGBA(lf[_LF_TEX, l], lf[_LF_TEX + 1, l], lf[_LF_TEX + 2, l], lf[_LF_TEX + 3, l])
+            li[_LI_WORD, l] = _color_word(lf[_LF_LIT, l], lf[_LF_LIT + 1, l], lf[_LF_LIT + 2, l],
+                                          lf[_LF_LIT + 3, l], texel)
+
+    return _phong_words
+
+
+_phong_words = _make_phong_words(sources_stamp(libm, ops_stage))
 
 
 # ----------------------------------------------------------------------------- per vertex and per face
