@@ -34,18 +34,37 @@ identical texels.  glref needs no module of softras but `softras.scene`.
   The levels are views of one buffer, back to back (:func:`levels_buffer`:
   the fast path samples them without a copy).
 
-The per-texel loops are compiled (numba): a new scene's texture costs both
-renderers its premultiplication and mip chain (glref reads level 0 of
-``Texture.levels``, which builds the whole chain).
+The per-texel loops are compiled (numba, at their first call: `_compiled`):
+a new scene's texture costs both renderers its premultiplication and mip
+chain (glref reads level 0 of ``Texture.levels``, which builds the whole
+chain).
 """
 
 from __future__ import annotations
 
 import functools
 
-import numba
 import numpy as np
 
+
+
+def _compiled(loop):
+    """``numba.njit(cache=True)`` of a per-texel loop, made at its first call.
+    Importing numba costs a process ~0.16 s, and most processes that read a
+    scene build no texels: the conformance supervisor (its workers render),
+    `softras info`, `softras compare`."""
+    jitted = None
+
+    @functools.wraps(loop)
+    def call(*args):
+        nonlocal jitted
+        if jitted is None:
+            import numba
+
+            jitted = numba.njit(cache=True)(loop)
+        return jitted(*args)
+
+    return call
 
 
 def source_texels(texture) -> np.ndarray:
@@ -151,7 +170,7 @@ def procedural_texels(kind: str, size: tuple[int, int], params: dict) -> np.ndar
     raise ValueError(f"unknown procedural texture {kind!r}")
 
 
-@numba.njit(cache=True)
+@_compiled
 def _checker(width, height, squares, color0, color1):
     """The checker of `procedural_texels`: (H, W, 4) uint8."""
     ci = np.empty(width, np.int64)
@@ -182,7 +201,7 @@ def premultiply_rgba8(straight: np.ndarray, out: np.ndarray | None = None) -> np
     return out
 
 
-@numba.njit(cache=True)
+@_compiled
 def _premultiply(texels, table, out):
     """(N, 4) uint8 straight -> out (N, 4) premultiplied, through the table (a * 256 + c)."""
     for i in range(texels.shape[0]):
@@ -230,7 +249,7 @@ def _method(method: str) -> str:
     return method
 
 
-@numba.njit(cache=True)
+@_compiled
 def _downsample(level, out):
     """The box reduction of a C-contiguous (H, W, C) uint8 level into out (H // 2, W // 2, C)."""
     h, w, channels = level.shape
@@ -361,7 +380,7 @@ def _llvmpipe_reduce(level, out):
     _blit_linear(level, *_blit_axes((out.shape[1], out.shape[0]), (w, h)), out)
 
 
-@numba.njit(cache=True)
+@_compiled
 def _blit_linear(level, x0, x1, wx, y0u, y1u, wyu, y0l, y1l, wyl, out):
     """Bilinear 8.8 blend of `level` into out at per-column (x0, x1, wx) and
     per-row coordinates of the upper-right (y0u, y1u, wyu) and lower-left
