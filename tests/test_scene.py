@@ -457,6 +457,121 @@ def test_bad_files(tmp_path, text, reason):
     assert str(info.value).startswith(f"{path}: {reason}"), str(info.value)
 
 
+def _same_json(a, b) -> bool:
+    """Whether two parsed JSON values are equal with the same types, floats
+    to the bit; but where b holds an integer beyond 64 bits, a may hold it
+    as the float nearest to it (orjson reads it so, `parse._fast_json`)."""
+    if isinstance(a, float) and type(b) is int and not -2**63 <= b < 2**64:
+        return np.float64(a).tobytes() == np.float64(float(b)).tobytes()
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, dict):
+        return list(a) == list(b) and all(_same_json(a[key], b[key]) for key in a)
+    if isinstance(a, list):
+        return len(a) == len(b) and all(_same_json(x, y) for x, y in zip(a, b))
+    if isinstance(a, float):
+        return np.float64(a).tobytes() == np.float64(b).tobytes()
+    return a == b
+
+
+def _json_value(data):
+    """Hypothesis data -> JSON text of a random value whose objects may
+    repeat a key, and whose strings may hold colons and quotes, plain or
+    escaped."""
+    from hypothesis import strategies as st
+
+    keys = st.sampled_from(["a", "b", "near", "x:y", 'q"t', "c\\:"])
+    leaves = (st.none() | st.booleans() | st.integers(-2**70, 2**70) | st.sampled_from([0, -0.0, 5e-324, 1e308])
+              | st.floats(allow_nan=False, allow_infinity=False) | st.text(alphabet='ab:"\\ ', max_size=4))
+    escaped = st.sampled_from(['"\\u003a"', '"a\\u003a\\u0022"'])        # (":" and 'a:"' as escapes)
+    tree = st.recursive(leaves.map(json.dumps) | escaped, lambda inner: (
+        st.lists(inner, max_size=4).map(lambda items: "[" + ",".join(items) + "]")
+        | st.lists(st.tuples(keys, inner), max_size=4).map(
+            lambda pairs: "{" + ", ".join(f"{json.dumps(k)} : {v}" for k, v in pairs) + "}")), max_leaves=12)
+    return data.draw(tree)
+
+
+def test_the_fast_parse_is_json_s_or_leaves_the_file_to_json():
+    """`parse._fast_json` (orjson) gives json's document, types and float
+    bits included, or `_UNDECIDED` (json decides): on random documents with
+    duplicate keys, colons and quotes in strings, integers beyond 64 bits
+    (read as the nearest float: `load_scene` validates json's document
+    again when a scene is refused, `test_a_file_loads_as_json_reads_it`),
+    subnormals.  A duplicate key, which orjson would take silently, is
+    never let through."""
+    from hypothesis import given, settings, strategies as st
+
+    from softras.scene import parse
+
+    @settings(max_examples=400, derandomize=True, database=None, deadline=None)
+    @given(st.data())
+    def check(data):
+        text = _json_value(data)
+        fast = parse._fast_json(text.encode())
+        try:
+            exact = json.loads(text, object_pairs_hook=parse._no_duplicate_keys)
+        except ValueError:
+            assert fast is parse._UNDECIDED, text
+            return
+        assert fast is parse._UNDECIDED or _same_json(fast, exact), text
+
+    check()
+    # The scene files take the fast parse, and so do colons in keys and strings.
+    texts = [open(os.path.join(SCENES_DIR, name), "rb").read()
+             for name in ("lit_spheres.json", "fill_rule_grid.json", "explicit_matrices.json")]
+    texts.append(b'{"a:b": "c:d", "e" : ["f:g", {"h": "i::j"}], "k": [[1, 2], [3, 4]]}')
+    for raw in texts:
+        assert _same_json(parse._fast_json(raw), json.loads(raw)), raw[:60]
+
+
+@pytest.mark.parametrize("text", [
+    '{"softras_scene": 1, "width": 8, "height": 6, "camera": {"near": 1, "near": 2}}',
+    '{"softras_scene": 1, "width": 18446744073709551616, "height": 6}',
+    '{"softras_scene": 1, "width": 8, "height": 6, "background": [1e400, 0, 0]}',
+    '{"softras_scene": 1,\r\n "width": 8\r\n "height": 6}',
+    '{"softras_scene": 1, "width": 8, "height": 6, "nodes": [{"name": "a\\":b", "mesh": {"procedural": "quad"}},'
+    ' {"name": "c", "mesh": {"positions": [[0, 0, 0], [1, 0, 123456789012345678901234567890], [0, 1, 0]],'
+    ' "indices": [[0, 1, 2]]}}]}',
+])
+def test_a_file_loads_as_json_reads_it(tmp_path, text):
+    """A scene file gives the scene, or the error, of json's document (read
+    as text, NaN and duplicate keys refused, as before orjson): a nested
+    duplicate key, an integer beyond 64 bits where an integer belongs (orjson
+    reads it as a float), a number that overflows to infinity, an error on a
+    line after CRLF line ends, a colon in a string, an integer beyond 64
+    bits where a float belongs."""
+    from softras.scene import parse
+
+    path = tmp_path / "scene.json"
+    path.write_bytes(text.encode())
+
+    def outcome(load):
+        try:
+            scene = load()
+        except SceneError as error:
+            return str(error)
+        return [(draw.path, draw.mesh.positions.tobytes(), draw.mesh.indices.tobytes()) for draw in scene.draws]
+
+    with open(path, encoding="utf-8") as file:
+        document = file.read()
+
+    def as_before():
+        try:
+            data = json.loads(document, parse_constant=parse._reject_constant,
+                              object_pairs_hook=parse._no_duplicate_keys)
+        except ValueError as error:
+            raise SceneError(str(path), f"invalid JSON: {error}") from None
+        return parse.scene_from_dict(data, source=str(path), base_dir=str(tmp_path))
+
+    expected = outcome(as_before)
+    got = outcome(lambda: load_scene(str(path)))
+    if isinstance(expected, str) and expected.startswith(f"{path}: invalid JSON"):
+        assert got.startswith(f"{path}: invalid JSON"), got     # (json's message, with its line and column)
+        assert ("duplicate key" in got) == ("duplicate key" in expected)
+    else:
+        assert got == expected
+
+
 def test_missing_file_and_folder(tmp_path):
     with pytest.raises(SceneError, match="no such file$"):
         load_scene(tmp_path / "missing.json")
