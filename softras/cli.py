@@ -1105,8 +1105,8 @@ def main(argv: list[str] | None = None) -> int:
     from softras.scene.imageio import ImageError
 
     # The commands that run compiled code in this process (not conformance:
-    # its workers, processes of their own, render; its supervisor imports
-    # no numba, 0.25 s of its 0.47 s of CPU).
+    # its workers, processes of their own, render; without numba its
+    # supervisor took 0.30 s of CPU instead of 0.47, docs/speed.md).
     if args.func not in (cmd_compare, cmd_info, cmd_conformance):
         announce_compilation()
         _without_numba_blas()

@@ -47,7 +47,6 @@ import functools
 import numpy as np
 
 
-
 def _compiled(loop):
     """``numba.njit(cache=True)`` of a per-texel loop, made at its first call.
     Importing numba costs a process ~0.16 s, and most processes that read a
