@@ -411,6 +411,16 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
         owned.append(obj)
         return obj
 
+    uploaded = {}   # texture name -> its GL texture: uploaded (and mipmapped) once a render, as an app would
+
+    def bind_texture(name: str, unit: int):
+        tex = uploaded.get(name)
+        if tex is None:
+            tex = uploaded[name] = own(_upload_texture(ctx, scene.textures[name], unit, mipmaps))
+        else:
+            tex.use(unit)
+        return tex
+
     try:
         color_rb = own(ctx.renderbuffer(size, components=4, samples=msaa, dtype=dtype))
         depth_rb = own(ctx.depth_renderbuffer(size, samples=msaa))
@@ -460,10 +470,10 @@ def render(scene, *, samples: int | None = None, framebuffer: str | None = None,
                 content.append((own(ctx.buffer(np.ascontiguousarray(mesh.uvs, np.float32))),
                                 "2f", "in_uv"))
             if "HAS_TEXTURE" in defines:
-                own(_upload_texture(ctx, scene.textures[draw.material.texture], 0, mipmaps))
+                bind_texture(draw.material.texture, 0)
                 prog["u_texture"].value = 0
             if mapped:
-                content.append(_set_normal_mapping(ctx, prog, scene, draw, own, mipmaps))
+                content.append(_set_normal_mapping(ctx, prog, draw, own, bind_texture))
             ibo = own(ctx.buffer(indices))
             vao = own(ctx.vertex_array(prog, content, index_buffer=ibo, index_element_size=4))
 
@@ -520,13 +530,14 @@ def _set_lighting(prog, scene, draw) -> None:
         prog[f"u_{name}"].value = float(getattr(mat, name))
 
 
-def _set_normal_mapping(ctx, prog, scene, draw, own, mipmaps: str = "generate"):
-    """Normal / bump map of a Phong draw: the map on texture unit 1, its
+def _set_normal_mapping(ctx, prog, draw, own, bind_texture):
+    """Normal / bump map of a Phong draw: the map on texture unit 1
+    (``bind_texture(name, unit)``: the render's GL texture of it), its
     uniforms, and the vertex buffer of the mesh's tangents (``Mesh.tangents``:
     the same values softras interpolates).  Returns the (buffer, format, name) VAO entry."""
     mesh, mat = draw.mesh, draw.material
     name = mat.normal_map if mat.normal_map is not None else mat.bump_map
-    tex = own(_upload_texture(ctx, scene.textures[name], 1, mipmaps))
+    tex = bind_texture(name, 1)
     if mat.normal_map is not None:
         prog["u_normal_map"].value = 1
     else:

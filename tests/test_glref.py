@@ -293,6 +293,46 @@ def test_many_renders_stay_clean():
     assert (first == u8(*GREEN)).all()
 
 
+def test_a_texture_shared_by_draws_is_uploaded_once_a_render(monkeypatch):
+    """Each texture is uploaded (and its mipmaps generated) once per render,
+    however many draws sample it, as an application would: a model of 64
+    parts sharing a texture took glref 52 ms a render, 10 ms so
+    (docs/speed.md, "Forty-second round").  The picture is the one of the
+    same draws each with textures of its own (an upload each)."""
+    import importlib
+
+    import softras
+
+    glref_render = importlib.import_module("glref.render")
+
+    def scene(shared: bool):
+        grid = {"procedural": "grid", "cols": 2, "rows": 2, "size": [0.8, 0.8]}
+        textures, nodes = {}, []
+        for k, (x, y) in enumerate([(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]):
+            own = "" if shared else str(k)
+            textures["checker" + own] = {"procedural": "checker", "size": [16, 16],
+                                         "min_filter": "linear_mipmap_linear"}
+            textures["bumps" + own] = {"procedural": "noise", "size": [16, 16], "min_filter": "linear"}
+            nodes.append({"name": f"part{k}", "translate": [x, y, 0], "mesh": grid,
+                          "material": {"shading": "phong", "texture": "checker" + own, "bump_map": "bumps" + own}})
+        return softras.load_scene({"softras_scene": 1, "width": 32, "height": 32, "textures": textures,
+                                   "lights": [{"type": "point", "position": [0, 0, 3]}], "nodes": nodes})
+
+    uploads = []
+    upload = glref_render._upload_texture
+
+    def counted(ctx, texture, unit, mipmaps):
+        uploads.append(texture.name)
+        return upload(ctx, texture, unit, mipmaps)
+
+    monkeypatch.setattr(glref_render, "_upload_texture", counted)
+    shared = glref.render(scene(True))
+    assert sorted(uploads) == ["bumps", "checker"]
+    uploads.clear()
+    assert np.array_equal(glref.render(scene(False)), shared)
+    assert len(uploads) == 8
+
+
 def test_unsupported_material_raises_before_rendering():
     draw = make_scene(2, 2, [node(quad(0, 0, 2, 2))]).draws[0]
     fields = ("path", "name", "world", "depth_test", "depth_write", "cull", "blend")
