@@ -184,6 +184,7 @@ def scenes(full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2
                    levels=False),
         BenchScene("lines_8k_512", lines_scene(512), levels=False),
         BenchScene("parts_64x128_512", parts_scene(512), levels=False),
+        BenchScene("textured_parts_64x128_512", parts_scene(512, textured=True), levels=False),
     ]
     for triangles in (1_000, 10_000, 100_000, 1_000_000):
         if triangles <= max_triangles:

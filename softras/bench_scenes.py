@@ -55,11 +55,13 @@ def blended_scene(side: int, layers: int = 8, cols: int = 8) -> dict:
             "nodes": nodes}
 
 
-def parts_scene(side: int, parts: int = 64, cols: int = 8) -> dict:
+def parts_scene(side: int, parts: int = 64, cols: int = 8, textured: bool = False) -> dict:
     """A stand-in for a model of many parts (a glTF file gives a draw per
     primitive): ``parts`` small opaque grids of 2*cols^2 triangles each, a
     draw each, tilted in a square array, depth-tested, each its own
-    colour.  What it measures is the cost per draw."""
+    colour; with ``textured`` each part Phong-lit by a point light and
+    sampling one shared checker texture (trilinear), as a textured model's
+    parts share its material.  What it measures is the cost per draw."""
     n = math.ceil(math.sqrt(parts))                 # parts a row
     nodes = []
     for k in range(parts):
@@ -68,10 +70,17 @@ def parts_scene(side: int, parts: int = 64, cols: int = 8) -> dict:
                       "translate": [2.4 * (k % n - (n - 1) / 2), 2.4 * (k // n - (n - 1) / 2), 0],
                       "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [2, 2],
                                "corner_colors": colors}})
-    return {"softras_scene": 1, "width": side, "height": side, "background": [0, 0, 0, 1],
-            "camera": {"projection": "perspective", "fov_y": 50, "near": 0.1, "far": 100,
-                       "eye": [0, 0, 2.7 * n], "target": [0, 0, 0]},
-            "nodes": nodes}
+        if textured:
+            nodes[-1]["material"] = {"shading": "phong", "texture": "checker"}
+    scene = {"softras_scene": 1, "width": side, "height": side, "background": [0, 0, 0, 1],
+             "camera": {"projection": "perspective", "fov_y": 50, "near": 0.1, "far": 100,
+                        "eye": [0, 0, 2.7 * n], "target": [0, 0, 0]},
+             "nodes": nodes}
+    if textured:
+        scene["textures"] = {"checker": {"procedural": "checker", "size": [256, 256], "squares": 16,
+                                         "min_filter": "linear_mipmap_linear", "mag_filter": "linear"}}
+        scene["lights"] = [{"type": "point", "position": [3 * n, 3 * n, 4 * n], "color": [1, 1, 1]}]
+    return scene
 
 
 def lit_scene(side: int, shading: str, segments: int, rings: int, *, samples: int = 1,

@@ -50,9 +50,11 @@ def test_benchmark_set_covers_the_issue_and_scales():
                     "textured_phong_8k_1024": (9024, 1024, 1, "phong", True, "triangles"),
                     "bump_mapped_8k_512": (9024, 512, 1, "phong", True, "triangles"),
                     "lines_8k_512": (8320, 512, 1, "unlit", False, "lines"),
-                    "parts_64x128_512": (8192, 512, 1, "unlit", False, "triangles")}, uses
+                    "parts_64x128_512": (8192, 512, 1, "unlit", False, "triangles"),
+                    "textured_parts_64x128_512": (8192, 512, 1, "phong", True, "triangles")}, uses
     assert loaded["bump_mapped_8k_512"].draws[0].material.bump_map is not None
     assert len(loaded["parts_64x128_512"].draws) == 64
+    assert {d.material.texture for d in loaded["textured_parts_64x128_512"].draws} == {"checker"}
 
 
 def test_level_table_one_line_per_level_and_applicability():
