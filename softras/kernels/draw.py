@@ -95,7 +95,8 @@ from softras.kernels.interpolate import (RGBA, _corner_colors, _corners, _lane_a
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES,
                                    LaneBuffers, _whole_vectors)
 from softras.kernels.lines import draw_lines
-from softras.kernels.light import NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs
+from softras.kernels.light import (NO_LIGHTING, Viewing, _phong_words, base_colors, flat_corner_colors, phong_inputs,
+                                   viewing)
 from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
                                  _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats, holds_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
@@ -228,8 +229,10 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
     else:
         clear_floats(color, depth, ops.premultiplied(scene.background))
         fb = Framebuffer(NO_WORDS, depth, color)
+    draws = ordered_draws(scene)
+    view = viewing(scene, draws)        # (the eye and the lit draws' normal rows, once a pass)
     batch = []                          # set-up triangle draws not yet drawn (`TileWork`)
-    for draw in ordered_draws(scene):
+    for draw in draws:
         lines = draw.mesh.primitive == "lines"
         # (Before a line draw, the triangle draws before it.)
         if batch and (lines or len(batch) == MAX_BATCH
@@ -239,7 +242,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
         if lines:
             draw_lines(scene, draw, fb, positions)
             continue
-        work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter, len(batch))
+        work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter, len(batch), view)
         if work is not None:
             batch.append(work)
     draw_batch(batch)
@@ -285,7 +288,7 @@ def draw_batch(batch: list) -> None:
 
 
 def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None,
-                     slot: int = 0) -> TileWork | None:
+                     slot: int = 0, view: Viewing | None = None) -> TileWork | None:
     """`softras.pipeline.render.draw_triangles` in gl precision (see the
     module docstring) up to the tile driver, for one triangle draw into the
     `softras.kernels.ops.Framebuffer` fb at the pass's `Samples`: the
@@ -293,8 +296,9 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     in its batch, `draw_batch`): this thread's reused ones for the first,
     fresh ones for the others (fewer than BATCH_TRIANGLES triangles in
     all; reused buffers for each slot would keep the largest draw ever
-    batched there for the life of the process).  None when no triangle is
-    visible."""
+    batched there for the life of the process).  view : the pass's
+    `softras.kernels.light.Viewing` (None: found for this draw).  None when
+    no triangle is visible."""
     offsets = samples.offsets
     mesh = draw.mesh
     width, height = scene.width, scene.height
@@ -311,12 +315,12 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     lit = material.shading == "phong"
     # The per-vertex inputs in this thread's reused buffers too: the set-up
     # copies them to the corners, and each draw's set-up is done before the next.
-    base = base_colors(scene, draw, _scratch.take)                          # straight, per vertex
+    base = base_colors(scene, draw, _scratch.take, view)                    # straight, per vertex
     uvs = np.zeros((0, 2))
     if textured(material):
         uvs = _scratch.take("uvs", mesh.uvs.shape, np.float64)
         uvs[:] = mesh.uvs.astype(np.float32)
-    world_normals, lights, lighting = phong_inputs(scene, draw, _scratch.take) if lit else NO_LIGHTING
+    world_normals, lights, lighting = phong_inputs(scene, draw, _scratch.take, view) if lit else NO_LIGHTING
 
     def take(name, shape, dtype):       # (slot 0: this thread's reused buffers)
         return _scratch.take(name, shape, dtype) if slot == 0 else np.empty(shape, dtype)
@@ -334,7 +338,7 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
         return None
     flat = material.shading == "flat"
     if flat:                # (only the visible triangles are binned: the others' colours are never read)
-        tris.colors[visible] = flat_corner_colors(scene, draw, base, clipped.source[visible])
+        tris.colors[visible] = flat_corner_colors(scene, draw, base, clipped.source[visible], view)
     sampler, texels = NO_TEXTURE
     if material.texture is not None:
         tex = texture.prepare(scene.textures[material.texture])

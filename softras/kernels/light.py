@@ -62,14 +62,38 @@ def _world_attributes(positions, world_rows, normals, normal_rows, out):
                              + normal_rows[r, 3])
 
 
-def world_attributes(draw, out: np.ndarray) -> np.ndarray:
+# What lights a pass's draws, found once for all of them (`viewing`): the
+# eye (3,) world space (`softras.pipeline.vertex.eye_position`), and per
+# draw that is lit with its normals (Phong, Gouraud) the (3, 4) rows of its
+# normal transform (`softras.pipeline.vertex.normal_rows`), by the draw's
+# id.  Per draw, the two inverses took 17 us of a textured, lit part's 47
+# us set-up (docs/speed.md, "Forty-second round").
+Viewing = namedtuple("Viewing", ["eye", "normal_rows"])
+
+
+def viewing(scene, draws) -> Viewing:
+    """The `Viewing` of ``draws`` (the pass's `softras.scene.ordered_draws`):
+    one inverse of the view matrix and one of the stack of their world
+    matrices (`softras.pipeline.vertex.normal_rows_of`)."""
+    lit = [draw for draw in draws if draw.material.shading in ("phong", "gouraud")
+           and draw.mesh.primitive == "triangles"]
+    rows = vertex.normal_rows_of(np.array([draw.world for draw in lit])) if lit else ()
+    return Viewing(vertex.eye_position(scene.camera.view), {id(draw): r for draw, r in zip(lit, rows)})
+
+
+def _eye(scene, view: Viewing | None) -> np.ndarray:
+    return vertex.eye_position(scene.camera.view) if view is None else view.eye
+
+
+def world_attributes(draw, out: np.ndarray, view: Viewing | None = None) -> np.ndarray:
     """The draw's world positions and (not unit) world normals into out[:, 0:3]
-    and out[:, 3:6] (out (V, 6 or more) float64), `_world_attributes`;
-    returns out."""
+    and out[:, 3:6] (out (V, 6 or more) float64), `_world_attributes`, with
+    the normal rows of ``view`` where it has the draw's; returns out."""
     mesh = draw.mesh
+    rows = view.normal_rows.get(id(draw)) if view is not None else None
     _world_attributes(np.ascontiguousarray(mesh.positions, np.float64),
-                      np.ascontiguousarray(draw.world[:3], np.float64),
-                      np.ascontiguousarray(mesh.normals, np.float64), vertex.normal_rows(draw.world), out)
+                      np.ascontiguousarray(draw.world[:3], np.float64), np.ascontiguousarray(mesh.normals, np.float64),
+                      vertex.normal_rows(draw.world) if rows is None else rows, out)
     return out
 
 
@@ -78,7 +102,7 @@ def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:
     return np.empty(shape, dtype)
 
 
-def phong_inputs(scene, draw, take=_fresh) -> tuple[np.ndarray, np.ndarray, Lighting]:
+def phong_inputs(scene, draw, take=_fresh, view: Viewing | None = None) -> tuple[np.ndarray, np.ndarray, Lighting]:
     """What a Phong-shaded triangle draw's kernels read: per vertex the
     world position and the (not unit) world normal (V, 6) float64, the
     inputs of `softras.pipeline.render.phong_attributes`, and for a normal
@@ -86,18 +110,21 @@ def phong_inputs(scene, draw, take=_fresh) -> tuple[np.ndarray, np.ndarray, Ligh
     `softras.pipeline.vertex.world_tangents`) (the set-up takes them to the
     corners), and the scene's `light_table` and `Lighting`.  The (V, 6 or
     10) array comes from ``take(name, shape, dtype)``: the tile drivers'
-    set-up passes a thread's reused buffers (`softras.kernels.scratch`)."""
+    set-up passes a thread's reused buffers (`softras.kernels.scratch`).
+    view : the pass's `Viewing`, or None to find the eye and normal rows
+    here."""
     mesh, material = draw.mesh, draw.material
     mapped = material.normal_map is not None or material.bump_map is not None
-    out = world_attributes(draw, take("phong_inputs", (len(mesh.positions), 10 if mapped else 6), np.float64))
+    out = world_attributes(draw, take("phong_inputs", (len(mesh.positions), 10 if mapped else 6), np.float64), view)
     if mapped:
         out[:, 6:] = vertex.world_tangents(mesh.tangents, draw.world)
-    return (out, *scene_lighting(scene, material))
+    return (out, *scene_lighting(scene, material, view))
 
 
-def scene_lighting(scene, material) -> tuple[np.ndarray, Lighting]:
-    """`light_table` of the scene's lights, its camera's eye and the material."""
-    return light_table(scene.lights, vertex.eye_position(scene.camera.view), material)
+def scene_lighting(scene, material, view: Viewing | None = None) -> tuple[np.ndarray, Lighting]:
+    """`light_table` of the scene's lights, its camera's eye (``view``'s
+    when given) and the material."""
+    return light_table(scene.lights, _eye(scene, view), material)
 
 
 def light_table(lights, eye: np.ndarray, material) -> tuple[np.ndarray, Lighting]:
@@ -327,10 +354,11 @@ def _make_lighting_loops(sources: str):
 _vertex_lighting, _face_lighting = _make_lighting_loops(sources_stamp(libm))
 
 
-def base_colors(scene, draw, take=_fresh) -> np.ndarray:
+def base_colors(scene, draw, take=_fresh, view: Viewing | None = None) -> np.ndarray:
     """`softras.pipeline.render.vertex_base_colors` (V, 4) float64, Gouraud's
     lighting by `_vertex_lighting`: the same bits.  Its arrays come from
-    ``take(name, shape, dtype)`` (as in `phong_inputs`)."""
+    ``take(name, shape, dtype)``, its eye and normal rows from ``view`` (as
+    in `phong_inputs`)."""
     material, mesh = draw.material, draw.mesh
     base = take("base_colors", (len(mesh.positions), 4), np.float64)
     if mesh.colors is None:     # (`softras.pipeline.render.vertex_colors`' white: 1 x colour, the same bits)
@@ -340,25 +368,27 @@ def base_colors(scene, draw, take=_fresh) -> np.ndarray:
     if material.shading != "gouraud":
         return base
     out = take("lit_base_colors", base.shape, np.float64)
-    table, lighting = scene_lighting(scene, material)
-    _vertex_lighting(base, world_attributes(draw, take("world_attributes", (len(mesh.positions), 6), np.float64)),
-                     table, tuple(lighting), out)
+    table, lighting = scene_lighting(scene, material, view)
+    _vertex_lighting(base, world_attributes(draw, take("world_attributes", (len(mesh.positions), 6), np.float64),
+                                            view), table, tuple(lighting), out)
     return out
 
 
-def face_colors(scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+def face_colors(scene, draw, base: np.ndarray, triangles: np.ndarray, view: Viewing | None = None) -> np.ndarray:
     """`softras.pipeline.render.flat_colors`' colours (K, 4) of the mesh
     triangles (K, 3) vertex indices, by `_face_lighting`: the same bits.
-    base : (V, 4) straight vertex colours times the material's."""
+    base : (V, 4) straight vertex colours times the material's; view : as
+    in `phong_inputs`."""
     out = np.empty((len(triangles), 4))
-    table, lighting = scene_lighting(scene, draw.material)
+    table, lighting = scene_lighting(scene, draw.material, view)
     _face_lighting(np.ascontiguousarray(vertex.world_positions(draw.mesh.positions, draw.world)),
                    np.ascontiguousarray(triangles, np.int64), np.ascontiguousarray(base), table, tuple(lighting),
                    out)
     return out
 
 
-def flat_corner_colors(scene, draw, base: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+def flat_corner_colors(scene, draw, base: np.ndarray, triangles: np.ndarray,
+                       view: Viewing | None = None) -> np.ndarray:
     """Flat shading's colour of the draw's mesh triangles ``triangles`` (K,)
     as the kernels read it: (K, 3, 4), the colour of
     `softras.pipeline.render.flat_colors` (face normal, centroid and
@@ -366,7 +396,7 @@ def flat_corner_colors(scene, draw, base: np.ndarray, triangles: np.ndarray) -> 
     (`softras.kernels.interpolate._lane_words` with ``flat``).  base : (V, 4)
     the straight vertex colours times the material's.  The stages light the
     same source triangles of the visible set-up triangles
-    (`face_colors`: their operations, compiled)."""
+    (`face_colors`: their operations, compiled; view as there)."""
     out = np.zeros((len(triangles), 3, 4))
-    out[:, 0] = face_colors(scene, draw, base, draw.mesh.indices[triangles])
+    out[:, 0] = face_colors(scene, draw, base, draw.mesh.indices[triangles], view)
     return out

@@ -46,3 +46,19 @@ def test_gl_precision_is_the_float32_column_sum_bit_for_bit():
     mvp = np.array([[float(a), 0, 0, -1.0]] + [[0, 0, 0, 1.0]] * 3)
     clip = vertex.to_clip(np.array([[float(a), 0.0, 0.0]]), mvp, "gl")
     assert clip[0, 0] == np.float64(np.float32(a * a) - np.float32(1.0))
+
+
+def test_normal_rows_of_a_stack_are_each_matrix_s_own_bits():
+    """`vertex.normal_rows_of` inverts a stack of world matrices in one call
+    (the compiled path's `softras.kernels.light.viewing`, once a pass): each
+    (3, 4) block is the bits of the matrix inverted alone, ``inv(M3)^T`` with
+    column 3 zero, for rotations, shears, mirrors, tiny and huge scales."""
+    rng = np.random.default_rng(7)
+    worlds = np.tile(np.eye(4), (200, 1, 1))
+    worlds[:, :3, :3] = rng.normal(size=(200, 3, 3)) * 10.0 ** rng.integers(-6, 7, size=(200, 1, 1))
+    worlds[:, :3, 3] = rng.normal(size=(200, 3))
+    stacked = vertex.normal_rows_of(worlds)
+    for world, rows in zip(worlds, stacked):
+        alone = np.linalg.inv(world[:3, :3]).T
+        assert rows[:, :3].tobytes() == alone.tobytes() and not rows[:, 3].any()
+        assert vertex.normal_rows(world).tobytes() == rows.tobytes()
