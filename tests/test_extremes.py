@@ -430,3 +430,19 @@ def test_4096_square_framebuffer():
     inside_x = (xs >= 1000.25) & (xs < 3000.5)
     inside_y = (rows + 0.5 >= 2000.75) & (rows + 0.5 < 3500.25)
     assert (red == (inside_y[:, None] & inside_x[None, :])).all()
+
+
+@pytest.mark.parametrize("precision", ["gl", "exact"])
+def test_a_lit_part_scaled_to_zero_out_of_view_draws_nothing(precision):
+    """A Phong-lit part scaled to 0 (its world 3x3 has no inverse, so no
+    normal transform) that the clipper drops leaves the picture as it is
+    without it: the compiled path's once-a-pass normal rows
+    (`softras.kernels.light.viewing`) leave such a draw out rather than
+    fail the pass."""
+    grid = {"name": "b", "mesh": {"procedural": "grid", "cols": 1, "rows": 1}, "material": {"shading": "gouraud"}}
+    hidden = {"name": "a", "scale": [0, 0, 0], "translate": [0, 0, 50],
+              "mesh": {"procedural": "sphere", "segments": 8, "rings": 6}, "material": {"shading": "phong"}}
+    base = {"softras_scene": 1, "width": 16, "height": 16, "lights": [{"type": "point", "position": [0, 0, 3]}]}
+    alone = softras.render(softras.load_scene({**base, "nodes": [grid]}), precision=precision)
+    both = softras.render(softras.load_scene({**base, "nodes": [hidden, grid]}), precision=precision)
+    assert np.array_equal(both, alone)

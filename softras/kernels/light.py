@@ -18,6 +18,7 @@ per block of up to 64 lanes costs nothing beside the lighting of each lane.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import namedtuple
 
@@ -74,11 +75,20 @@ Viewing = namedtuple("Viewing", ["eye", "normal_rows"])
 def viewing(scene, draws) -> Viewing:
     """The `Viewing` of ``draws`` (the pass's `softras.scene.ordered_draws`):
     one inverse of the view matrix and one of the stack of their world
-    matrices (`softras.pipeline.vertex.normal_rows_of`)."""
+    matrices (`softras.pipeline.vertex.normal_rows_of`).  A world matrix
+    numpy cannot invert (a part scaled to 0) is left out, and its draw
+    finds its rows itself, where it did before (`world_attributes`): only
+    if a triangle of it is left after clipping."""
     lit = [draw for draw in draws if draw.material.shading in ("phong", "gouraud")
            and draw.mesh.primitive == "triangles"]
-    rows = vertex.normal_rows_of(np.array([draw.world for draw in lit])) if lit else ()
-    return Viewing(vertex.eye_position(scene.camera.view), {id(draw): r for draw, r in zip(lit, rows)})
+    try:
+        rows = dict(zip(map(id, lit), vertex.normal_rows_of(np.array([draw.world for draw in lit])))) if lit else {}
+    except np.linalg.LinAlgError:
+        rows = {}
+        for draw in lit:
+            with contextlib.suppress(np.linalg.LinAlgError):
+                rows[id(draw)] = vertex.normal_rows(draw.world)
+    return Viewing(vertex.eye_position(scene.camera.view), rows)
 
 
 def _eye(scene, view: Viewing | None) -> np.ndarray:
