@@ -437,8 +437,8 @@ def test_a_lit_part_scaled_to_zero_out_of_view_draws_nothing(precision):
     """A Phong-lit part scaled to 0 (its world 3x3 has no inverse, so no
     normal transform) that the clipper drops leaves the picture as it is
     without it: the compiled path's once-a-pass normal rows
-    (`softras.kernels.light.viewing`) leave such a draw out rather than
-    fail the pass."""
+    (`softras.kernels.light.viewing`) give way to each draw's own rather
+    than fail the pass."""
     grid = {"name": "b", "mesh": {"procedural": "grid", "cols": 1, "rows": 1}, "material": {"shading": "gouraud"}}
     hidden = {"name": "a", "scale": [0, 0, 0], "translate": [0, 0, 50],
               "mesh": {"procedural": "sphere", "segments": 8, "rings": 6}, "material": {"shading": "phong"}}

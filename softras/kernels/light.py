@@ -18,7 +18,6 @@ per block of up to 64 lanes costs nothing beside the lighting of each lane.
 
 from __future__ import annotations
 
-import contextlib
 import math
 from collections import namedtuple
 
@@ -75,9 +74,9 @@ Viewing = namedtuple("Viewing", ["eye", "normal_rows"])
 def viewing(scene, draws) -> Viewing:
     """The `Viewing` of ``draws`` (the pass's `softras.scene.ordered_draws`):
     one inverse of the view matrix and one of the stack of their world
-    matrices (`softras.pipeline.vertex.normal_rows_of`).  A world matrix
-    numpy cannot invert (a part scaled to 0) is left out, and its draw
-    finds its rows itself, where it did before (`world_attributes`): only
+    matrices (`softras.pipeline.vertex.normal_rows_of`).  When numpy cannot
+    invert one of them (a part scaled to 0) the view holds no rows, and
+    each draw finds its own where it did before (`world_attributes`): only
     if a triangle of it is left after clipping."""
     lit = [draw for draw in draws if draw.material.shading in ("phong", "gouraud")
            and draw.mesh.primitive == "triangles"]
@@ -85,14 +84,7 @@ def viewing(scene, draws) -> Viewing:
         rows = dict(zip(map(id, lit), vertex.normal_rows_of(np.array([draw.world for draw in lit])))) if lit else {}
     except np.linalg.LinAlgError:
         rows = {}
-        for draw in lit:
-            with contextlib.suppress(np.linalg.LinAlgError):
-                rows[id(draw)] = vertex.normal_rows(draw.world)
     return Viewing(vertex.eye_position(scene.camera.view), rows)
-
-
-def _eye(scene, view: Viewing | None) -> np.ndarray:
-    return vertex.eye_position(scene.camera.view) if view is None else view.eye
 
 
 def world_attributes(draw, out: np.ndarray, view: Viewing | None = None) -> np.ndarray:
@@ -134,7 +126,7 @@ def phong_inputs(scene, draw, take=_fresh, view: Viewing | None = None) -> tuple
 def scene_lighting(scene, material, view: Viewing | None = None) -> tuple[np.ndarray, Lighting]:
     """`light_table` of the scene's lights, its camera's eye (``view``'s
     when given) and the material."""
-    return light_table(scene.lights, _eye(scene, view), material)
+    return light_table(scene.lights, vertex.eye_position(scene.camera.view) if view is None else view.eye, material)
 
 
 def light_table(lights, eye: np.ndarray, material) -> tuple[np.ndarray, Lighting]:
