@@ -53,9 +53,9 @@ def test_a_draw_in_shares_gives_the_bytes_of_one_share(samples, pattern, monkeyp
     twice), textured and lit, at each tile driver's sample count: two and
     three shares against one."""
     scene = softras.load_scene(draw_scene())
-    monkeypatch.setattr(draw, "SHARE_PIXELS", 1 << 60)
+    monkeypatch.setattr(draw, "shares", lambda batch, n_threads: 1)
     one = softras.render(scene, samples=samples, pattern=pattern)
-    monkeypatch.setattr(draw, "SHARE_PIXELS", 0)
+    monkeypatch.setattr(draw, "shares", lambda batch, n_threads: n_threads)
     for n in (2, 3):
         monkeypatch.setattr(draw.numba, "get_num_threads", lambda n=n: n)
         assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), one), f"{n} shares"
@@ -93,7 +93,7 @@ def test_a_scene_of_many_draws_in_batches_gives_the_stages_bytes(batch_triangles
                                                                           [1, 0.1, 0]], "indices": [[0, 1], [2, 3]]},
                               "material": {"color": [0.1, 1, 0.3, 0.7]}})
     scene = softras.load_scene(scene)
-    monkeypatch.setattr(draw, "SHARE_PIXELS", 0)
+    monkeypatch.setattr(draw, "shares", lambda batch, n_threads: n_threads)
     monkeypatch.setattr(draw, "BATCH_TRIANGLES", batch_triangles)
     monkeypatch.setattr(draw.numba, "get_num_threads", lambda: 2)
     for samples in (1, 4):
@@ -127,3 +127,27 @@ def test_the_drivers_read_no_lane_they_have_not_written(monkeypatch):
                 monkeypatch.setattr(draw, "lane_buffers", functools.partial(junk, integer_junk))
                 assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), expected), \
                     f"{samples} samples, integer rows {integer_junk}"
+
+
+@pytest.mark.parametrize("name, expected", [("parts_64x128_512", 1), ("textured_parts_64x128_512", 2),
+                                            ("few_large_512", 2), ("scale_pixels_256", 2)])
+def test_a_batch_takes_two_threads_where_its_work_outweighs_the_hand_off(name, expected, monkeypatch):
+    """`draw.shares` on two threads, from the set-up's estimate of each
+    draw's work (`draw.draw_work`): batches of 16 small unlit draws stay on
+    one thread (half their work is less than trading the GIL at each draw),
+    the same draws textured and lit take two, as do one large quad and one
+    draw of 2k small triangles; the three quads of a 128x96 scene stay on one
+    (docs/speed.md, "Forty-third round")."""
+    from softras import bench
+    scenes = [softras.load_scene(next(item.scene for item in bench.scenes() if item.name == name)),
+              softras.load_scene(SCENES / "culling_back.json")]
+    for scene in scenes:            # (first: the kernels' preparation draws scenes of its own)
+        softras.render(scene)
+    decided = []
+    decide = draw.shares
+    monkeypatch.setattr(draw.numba, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(draw, "shares", lambda batch, n_threads: decided.append(decide(batch, n_threads)) or 1)
+    for scene, want in zip(scenes, (expected, 1)):
+        decided.clear()
+        softras.render(scene)
+        assert decided and set(decided) == {want}, decided

@@ -251,9 +251,10 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
 
 # A triangle draw set up and binned, ready for its tile driver: the driver,
 # the records it takes (plain tuples, `softras.kernels.setup.Clipped`), the
-# sample count of its lanes (`lane_buffers`), the pixels its triangles'
-# boxes cover (`_bin`), and its mesh's triangles (`BATCH_TRIANGLES`).
-TileWork = namedtuple("TileWork", ["driver", "records", "n_samples", "pixels", "triangles"])
+# sample count of its lanes (`lane_buffers`), the estimated time of drawing
+# it on one thread (`draw_work`, ns), and its mesh's triangles
+# (`BATCH_TRIANGLES`).
+TileWork = namedtuple("TileWork", ["driver", "records", "n_samples", "work", "triangles"])
 
 # At most this many triangle draws are set up before they are drawn, and
 # no more mesh triangles than BATCH_TRIANGLES unless one draw has more
@@ -273,7 +274,7 @@ def draw_batch(batch: list) -> None:
     drawing them one by one."""
     if not batch:
         return
-    n_shares = shares(sum(work.pixels for work in batch), numba.get_num_threads())
+    n_shares = shares(batch, numba.get_num_threads())
 
     def share(r):
         # One share's lanes for the whole batch (one pass: one sample count),
@@ -361,21 +362,44 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
     records = (tuple(bins), tuple(tris), tuple(samples), tuple(fb), tuple(state), sampler, tuple(texels), map_sampler,
                tuple(map_texels), lights, tuple(lighting))
-    return TileWork(draw_tiles, records, len(offsets), pixels, len(mesh.indices))
+    work = draw_work(len(bin_tri), pixels, is_textured or lit, len(offsets))
+    return TileWork(draw_tiles, records, len(offsets), work, len(mesh.indices))
 
 
-# A batch of draws whose triangles' boxes cover fewer pixels than this is
-# drawn on one thread: handing a share to a second thread and waiting for
-# it (~50 us here) costs more than the share saves.  One quad on two threads against
-# one, 512^2: even at 2 x 256^2 pixels of boxes, faster at 2 x 384^2
-# (docs/speed.md, "Thirty-third round").
-SHARE_PIXELS = 131072
+# A draw's work as `draw_work` estimates it, in ns on one thread: per
+# (triangle, tile) pair that `_bin` lists (each tile sets up the triangle's
+# edges and walks its box there) and per pixel of the visible triangles'
+# boxes, four times that for a draw that textures or Phong-lights each pixel,
+# twice that at more than one sample.  Against the bench scenes' one-thread
+# draws it gives 0.6-1.7x their time, bump_mapped_8k_512's 0.23x (four
+# more texture taps a pixel) (docs/speed.md, "Forty-third round"): it only
+# has to tell a batch worth two threads from one that is not.
+BINNED_NS = 100
+BOX_PIXEL_NS = 0.75
+
+# What handing a batch's shares to the threads costs, ns: the hand-off and
+# wait (~50 us here, `softras.kernels.threads`), and per draw of the batch
+# a trade of the GIL between the threads (each share calls the driver from
+# Python, one draw after another: ~15 us a draw on parts_64x128_512, whose
+# batches of 16 draws took 0.38 ms on one thread and 0.30 or 0.55 ms on two).
+HAND_OFF_NS = 50_000
+HAND_OFF_NS_PER_DRAW = 15_000
 
 
-def shares(pixels: int, n_threads: int) -> int:
-    """How many threads draw a batch whose triangles' boxes cover ``pixels``
-    pixels (`_bin`): n_threads, or one below SHARE_PIXELS."""
-    return n_threads if pixels >= SHARE_PIXELS else 1
+def draw_work(binned: int, box_pixels: int, heavy: bool, n_samples: int) -> float:
+    """The estimated ns of drawing a set-up draw on one thread: ``binned``
+    (triangle, tile) pairs and ``box_pixels`` pixels of its visible
+    triangles' boxes (`_bin`), ``heavy`` when it is textured or
+    Phong-lit, at n_samples samples (`BINNED_NS`)."""
+    return (BINNED_NS * binned + BOX_PIXEL_NS * box_pixels) * (4 if heavy else 1) * (2 if n_samples > 1 else 1)
+
+
+def shares(batch: list, n_threads: int) -> int:
+    """How many threads draw a batch of `TileWork`: n_threads where a share of
+    the estimated work (`draw_work`) takes longer than handing a share over
+    (`HAND_OFF_NS`), else one."""
+    work = sum(work.work for work in batch)
+    return n_threads if work / n_threads > HAND_OFF_NS + HAND_OFF_NS_PER_DRAW * len(batch) else 1
 
 
 def lane_buffers(n_samples: int) -> LaneBuffers:

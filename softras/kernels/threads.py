@@ -13,7 +13,8 @@ driver 143 -> 72 s, docs/speed.md, "Thirty-third round").  The price: a
 share handed to a pool thread and waited for costs ~50 us here, where
 numba's own threads start a loop in ~2 us when they are awake (so the
 shares of a batch of draws are handed over once, `softras.kernels.draw.draw_batch`,
-and a small batch takes one share, `softras.kernels.draw.SHARE_PIXELS`).  A parallel
+and a batch whose estimated work is small takes one share,
+`softras.kernels.draw.shares`).  A parallel
 loop that calls the shares as functions of their own compiled little
 less (numba optimises a callee again in each caller).
 """
