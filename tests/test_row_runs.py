@@ -108,7 +108,7 @@ def test_a_blocks_quads_at_one_sample_are_the_per_sample_test(seed):
                                       sy + 256 * int(rng.integers(0, by1 - by0 + 1)), int(rng.integers(-1, 2)))
                         for _ in range(3)))
         lf, li = np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + 1, 2 * LANES), np.int64)
-        n = _list_quads(bx0, bx1, by0, by1, False, edges, offsets, 1, lf, li, 1)
+        n = _list_quads(0, bx0, bx1, by0, by1, False, edges, offsets, 1, lf, li, 1)
         got = list(zip(li[_LI_PX, :n].tolist(), li[_LI_PY, :n].tolist(), li[_LI_COV, :n].tolist()))
         assert got == _quads(edges, offsets, bx0, bx1, by0, by1), (edges, bx0, bx1, by0, by1)
         assert (lf[_LF_CX, :n] == li[_LI_PX, :n] + 0.5).all() and (lf[_LF_CY, :n] == li[_LI_PY, :n] + 0.5).all()

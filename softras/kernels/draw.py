@@ -406,7 +406,7 @@ def lane_buffers(n_samples: int) -> LaneBuffers:
     """A share's `LaneBuffers` for a batch of draws of n_samples samples a
     pixel (`softras.kernels.lanes`), zeroed."""
     return LaneBuffers(np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + n_samples, 2 * LANES), np.int64),
-                       np.zeros((8, LANES), np.uint64), np.empty((2, 4)), np.zeros((3, n_samples), np.int64))
+                       np.zeros((8, 2 * LANES), np.uint64), np.empty((2, 4)), np.zeros((3, n_samples), np.int64))
 
 
 _scratch = _Scratch()
@@ -610,12 +610,17 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     """One 64x64 tile of a textured draw: as `_flat_tile`, but the blocks
     start at even pixels (whole 2x2 quads, for the texture derivatives), the
     covered quads are listed (`softras.kernels.rasterize._list_quads`, or
-    every quad of a block inside all edges) and each block's quads are
-    shaded at once: `softras.pipeline.texture.sample` and
+    every quad of a block inside all edges), block after block, and shaded
+    together once LANES or more are listed or at the triangle's last block
+    in the tile: `softras.pipeline.texture.sample` and
     `softras.pipeline.ops.apply_fragments` of a textured triangle's
     fragments, as `softras.pipeline.render.draw_triangles` does them, on the n
-    lanes (n / 4 quads, with pixel, centre and coverage) of one triangle in
-    one 8x8 block.  Arguments as `_flat_tile`, plus the texture's `Sampler`
+    lanes (n / 4 quads, with pixel, centre and coverage) of one triangle.
+    A small triangle's few quads in each of its blocks were shaded block by
+    block: together, bump_mapped_8k_512 draws 14-18 % faster on one
+    thread, textured_phong_8k_1024 4-9 %, the floor's large triangles
+    (whole blocks, shaded one by one as before) the same (docs/speed.md,
+    "Forty-third round").  Arguments as `_flat_tile`, plus the texture's `Sampler`
     and `Texels` tex and the normal or bump map's (map_sampler, map_tex).
     A draw with a map and no colour texture comes here too (``state.texture``
     False): its quads give the map's derivatives.
@@ -630,7 +635,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     (`softras.kernels.texture._lanes_aniso_levels`); an alpha-tested draw
     samples every covered quad, then discards, then depth-tests.
 
-    The block's shading is written out in the block loop rather than called:
+    The shading is written out in the block loop rather than called:
     as a function of its own (a call per block, with the records' arrays
     counted at each) it made the 1024^2 floor 16 % slower, and as a function
     numba inlines it took 26 s of this function's compile time (numba copied
@@ -657,6 +662,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
         x0, y0 = x_start & -2, y_start & -2
         blocks_x = max((x_end - x0) // BLOCK + 1, 0)
         n_blocks = blocks_x * max((y_end - y0) // BLOCK + 1, 0)
+        listed = 0                  # lanes listed and not yet shaded
         for k in range(n_blocks):
             block_y = y0 + (k // blocks_x) * BLOCK
             block_x = x0 + (k % blocks_x) * BLOCK
@@ -664,15 +670,21 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             bx, bx1 = max(block_x, x_start), min(block_x + BLOCK - 1, x_end)
             outside, all_in = _block_test(edges, bx * 256 + box[0], bx1 * 256 + box[1],
                                           by * 256 + box[2], by1 * 256 + box[3])
-            if outside:
+            if not outside:
+                if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
+                    if listed == 0:         # (lanes known at compile time: 9 % off the floor's whole blocks)
+                        listed = _list_whole_block(0, bx, by, full_mask, lf, li)
+                    else:
+                        listed = _list_whole_block(listed, bx, by, full_mask, lf, li)
+                else:
+                    listed = _list_quads(listed, bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, count)
+            # Shaded once LANES or more are listed (another block's 64 might
+            # not fit the rows' 2 * LANES) or at the last block.
+            if listed == 0 or (listed < LANES and k < n_blocks - 1):
                 continue
-            if all_in and bx1 - bx == BLOCK - 1 and by1 - by == BLOCK - 1:
-                n = _list_whole_block(bx, by, full_mask, lf, li)
-            else:
-                n = _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, count)
-            if n == 0:
-                continue
-            # The block's n lanes shaded.
+            n = listed
+            listed = 0
+            # The n lanes shaded.
             _lane_weights(_whole_vectors(n), t, tris.f, lf, tris.uv, True)        # weights and (s, t), vectorised
             if use_depth:
                 _lane_depths(_whole_vectors(n), t, tris.f, samples.positions, li, count)   # (vectorised)

@@ -2,14 +2,15 @@
 
 No readable counterpart: `softras.pipeline.render` materialises a fragment
 list (`softras.pipeline.rasterize.Fragments`) and per-fragment arrays; the
-compiled path keeps at most one block's worth of them, per thread, in two
+compiled path keeps at most two blocks' worth of them, per thread, in two
 small arrays, float64 ``lf`` (_NLF, 2 * LANES) and int64 ``li``
 (_LI_Z + samples, 2 * LANES), one column per lane.
 
 Pixels are shaded in "lanes": `softras.kernels.draw._flat_tile` (or `_textured_tile`) lists an
 untextured triangle's covered pixels (shaded from LANES of them on,
-`_flat_block`) or a textured triangle's covered 2x2 quads of one 8x8 block (4
-lanes per quad, up to 64, shaded per block in `_textured_tile`); then each step runs as one loop
+`_flat_block`) or a textured triangle's covered 2x2 quads of its 8x8 blocks (4
+lanes per quad, up to 64 a block, shaded in `_textured_tile` from LANES of
+them on or at the triangle's last block); then each step runs as one loop
 over the lanes.  The steps without branches or table look-ups (the
 perspective weights with their three divisions, depth, texel addresses, the
 8.8 filter, the colour bytes) are loops that LLVM compiles to AVX2 (4 or 8
@@ -35,9 +36,9 @@ LANES = 64                                   # 16 quads of an 8x8 block
 # time.  The arithmetic steps, which write nothing but their own lanes'
 # rows, therefore run over the count rounded up to whole vectors
 # (`_whole_vectors`): the lanes past the count compute on what earlier
-# blocks left there, and nothing reads their results.  An untextured
-# count is below 2 * LANES, the lf and li rows' width, and a textured
-# block's at most LANES, the lu rows' width: rounded up, each stays inside
+# blocks left there, and nothing reads their results.  Both counts are
+# below 2 * LANES, the lf, li and lu rows' width (a textured count is
+# under LANES before its last block's at most LANES): rounded up, each stays inside
 # its rows.
 VECTOR = 8
 
@@ -71,7 +72,7 @@ def _whole_vectors(n):
 # A share's lane buffers (allocated per batch of draws for each share of
 # the tile drivers, `softras.kernels.draw.lane_buffers`): the float64 rows lf (_NLF,
 # 2 * LANES), the int64 rows li (_LI_Z + samples, 2 * LANES), the 8 fetched
-# texels per lane spread into 16-bit lanes lu (8, LANES) uint64, the scalar
+# texels per lane spread into 16-bit lanes lu (8, 2 * LANES) uint64, the scalar
 # float filter's two levels' RGBA texel (2, 4) and a pixel row's edge
 # functions per sample, rows (3, samples) int64.
 LaneBuffers = namedtuple("LaneBuffers", ["lf", "li", "lu", "texel", "rows"])

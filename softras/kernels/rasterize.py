@@ -147,25 +147,26 @@ def _block_test(edges, x_lo, x_hi, y_lo, y_hi):
 
 
 @numba.njit(cache=True, inline="always")
-def _list_whole_block(bx, by, full_mask, lf, li):
+def _list_whole_block(n, bx, by, full_mask, lf, li):
     """The fragments of `softras.pipeline.rasterize._raster_triangle` for an
     8x8 block inside all three edges, starting at pixel (bx, by) (even: whole
     quads), as its 16 quads' lanes (4 lanes per quad, top-left, top-right,
     bottom-left, bottom-right in llvmpipe's view), every sample covered, no
-    tests; the pixel centres too.  Returns LANES."""
+    tests; the pixel centres too; appended as lanes from lane n on.
+    Returns n + LANES."""
     for l in range(LANES):
         px = bx + ((l >> 2) & 3) * 2 + (l & 1)
         py = by + (l >> 4) * 2 + ((l >> 1) & 1)
-        li[_LI_PX, l] = px
-        li[_LI_PY, l] = py
-        li[_LI_COV, l] = full_mask
-        lf[_LF_CX, l] = px + 0.5
-        lf[_LF_CY, l] = py + 0.5
-    return LANES
+        li[_LI_PX, n + l] = px
+        li[_LI_PY, n + l] = py
+        li[_LI_COV, n + l] = full_mask
+        lf[_LF_CX, n + l] = px + 0.5
+        lf[_LF_CY, n + l] = py + 0.5
+    return n + LANES
 
 
 @numba.njit(cache=True, inline="always")
-def _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples):
+def _list_quads(n, bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_samples):
     """The fragments of `softras.pipeline.rasterize._raster_triangle` in pixels
     bx..bx1 x by..by1 of one block, as the lanes of the 2x2 quads with a
     covered sample (4 lanes per quad; a lane outside the block or uncovered
@@ -173,8 +174,7 @@ def _list_quads(bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, n_s
     test found every sample inside.  At one sample a partly covered block
     takes each row's run (`_row_run`, two per quad row) instead of testing
     every pixel: textured_phong_8k_1024 3-4 % faster on one thread.
-    Returns the number of lanes."""
-    n = 0
+    Appended as lanes from lane n on; returns the new number of lanes."""
     runs = n_samples == 1 and not all_in
     for qy in range(by & -2, by1 + 1, 2):
         lo0 = hi0 = lo1 = hi1 = 0
