@@ -107,11 +107,14 @@ def test_a_blocks_quads_at_one_sample_are_the_per_sample_test(seed):
         edges = Edges(*(_edge_through(rng, int(rng.integers(bx0 - 2, bx1 + 3)) * 256 + int(offsets[0, 0]),
                                       sy + 256 * int(rng.integers(0, by1 - by0 + 1)), int(rng.integers(-1, 2)))
                         for _ in range(3)))
-        lf, li = np.zeros((_NLF, 2 * LANES)), np.zeros((_LI_Z + 1, 2 * LANES), np.int64)
-        n = _list_quads(0, bx0, bx1, by0, by1, False, edges, offsets, 1, lf, li, 1)
-        got = list(zip(li[_LI_PX, :n].tolist(), li[_LI_PY, :n].tolist(), li[_LI_COV, :n].tolist()))
+        lf, li = np.full((_NLF, 2 * LANES), -7.0), np.full((_LI_Z + 1, 2 * LANES), -7, np.int64)
+        start = 4 * int(rng.integers(0, LANES // 4))        # (appended after earlier blocks' quads)
+        n = _list_quads(start, bx0, bx1, by0, by1, False, edges, offsets, 1, lf, li, 1)
+        assert (li[:, :start] == -7).all() and (lf[:, :start] == -7).all()
+        got = list(zip(li[_LI_PX, start:n].tolist(), li[_LI_PY, start:n].tolist(), li[_LI_COV, start:n].tolist()))
         assert got == _quads(edges, offsets, bx0, bx1, by0, by1), (edges, bx0, bx1, by0, by1)
-        assert (lf[_LF_CX, :n] == li[_LI_PX, :n] + 0.5).all() and (lf[_LF_CY, :n] == li[_LI_PY, :n] + 0.5).all()
+        assert (lf[_LF_CX, start:n] == li[_LI_PX, start:n] + 0.5).all()
+        assert (lf[_LF_CY, start:n] == li[_LI_PY, start:n] + 0.5).all()
 
 
 def test_a_right_edge_through_a_sample_keeps_or_drops_it_by_its_bias():

@@ -173,15 +173,22 @@ def _list_quads(n, bx, bx1, by, by1, all_in, edges, offsets, full_mask, lf, li, 
     gets mask 0: a helper pixel); the pixel centres too.  all_in: the block
     test found every sample inside.  At one sample a partly covered block
     takes each row's run (`_row_run`, two per quad row) instead of testing
-    every pixel: textured_phong_8k_1024 3-4 % faster on one thread.
+    every pixel (textured_phong_8k_1024 3-4 % faster on one thread), and
+    looks only at the quads across the two runs (textured_parts_64x128_512
+    5-7 % faster).
     Appended as lanes from lane n on; returns the new number of lanes."""
     runs = n_samples == 1 and not all_in
     for qy in range(by & -2, by1 + 1, 2):
         lo0 = hi0 = lo1 = hi1 = 0
+        qx0, qx1 = bx & -2, bx1         # the quads' columns to look at
         if runs:                        # (the quad row's two rows, empty outside the block)
             lo0, hi0 = _row_run(bx, bx1, qy, edges, offsets) if qy >= by else (1, 0)
             lo1, hi1 = _row_run(bx, bx1, qy + 1, edges, offsets) if qy + 1 <= by1 else (1, 0)
-        for qx in range(bx & -2, bx1 + 1, 2):
+            # Only the quads across the two runs: the others have no covered pixel.
+            lo, hi = (min(lo0, lo1), max(hi0, hi1)) if lo0 <= hi0 and lo1 <= hi1 else \
+                ((lo0, hi0) if lo0 <= hi0 else (lo1, hi1))
+            qx0, qx1 = (bx + lo) & -2, bx + hi
+        for qx in range(qx0, qx1 + 1, 2):
             quad_mask = 0
             for k in range(4):
                 px = qx + (k & 1)
