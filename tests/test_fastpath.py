@@ -83,11 +83,12 @@ BLENDS = ["none", "over", "over_straight", "add", "subtract", "reverse_subtract"
 
 
 def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: int = 75,
-                 vectorised: bool = False) -> dict:
+                 vectorised: bool | str = False) -> dict:
     """Overlapping random triangles in clip space (some crossing the frustum, w
     from near 0 to 3), random colours with alpha, per-node depth / blend / cull.
     vectorised: textures that the fast path filters in lanes (`_lanes_bilinear_fixed`:
-    linear image filters, power-of-two or clamped sizes, both fixed-point wraps),
+    linear image filters, power-of-two or clamped sizes, both fixed-point wraps;
+    "nearest": `_lanes_nearest_fixed`, nearest image filters),
     uv up to +-60, and every third node without vertex colours (white: the
     texel's bytes are the fragment's, `fastpath.plain_colors`)."""
     rng = np.random.default_rng(seed)
@@ -100,9 +101,10 @@ def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: 
                                                     ([13, 7], "clamp_to_edge", "clamp_to_edge"),
                                                     ([32, 8], "repeat", "clamp_to_edge"),
                                                     ([8, 32], "clamp_to_edge", "repeat")]):
+            image = "nearest" if vectorised == "nearest" else "linear"
             textures[f"t{k}"] = {"procedural": "noise" if k % 2 else "checker", "size": size,
-                                 "wrap_s": wrap_s, "wrap_t": wrap_t, "mag_filter": "linear",
-                                 "min_filter": ["linear", "linear_mipmap_nearest", "linear_mipmap_linear"][(seed + k) % 3]}
+                                 "wrap_s": wrap_s, "wrap_t": wrap_t, "mag_filter": image,
+                                 "min_filter": [image, f"{image}_mipmap_nearest", f"{image}_mipmap_linear"][(seed + k) % 3]}
     elif textured:
         for k, (wrap_s, wrap_t) in enumerate([("repeat", "repeat"), ("clamp_to_edge", "mirrored_repeat"),
                                               ("mirrored_repeat", "clamp_to_edge"), ("repeat", "clamp_to_edge")]):
@@ -541,13 +543,16 @@ def test_random_beyond_filter_scenes_are_bit_identical(name, seed, samples):
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("samples", [1, 4])
-def test_random_lane_filtered_scenes_are_bit_identical(seed, samples):
-    """The vectorised filter path (`k_texture._lanes_bilinear_fixed`) with both of
-    llvmpipe's fixed-point wraps (mirrored_repeat filters in float: the scalar path)."""
-    scene = softras.load_scene(random_scene(200 + seed, vectorised=True))
+@pytest.mark.parametrize("image", ["linear", "nearest"])
+def test_random_lane_filtered_scenes_are_bit_identical(seed, samples, image):
+    """The vectorised filter paths (`k_texture._lanes_bilinear_fixed`,
+    `k_texture._lanes_nearest_fixed`) with both of llvmpipe's fixed-point
+    wraps (mirrored_repeat filters in float: the scalar path)."""
+    scene = softras.load_scene(random_scene(200 + seed, vectorised=True if image == "linear" else image))
     for name, tex in scene.textures.items():
         sampler = k_texture.texture_tables(softras.pipeline.texture.prepare(tex), True)[0]
-        assert sampler.vectorised == 1, name
+        assert sampler.vectorised == {"linear": k_texture.VECTORISED_LINEAR,
+                                      "nearest": k_texture.VECTORISED_NEAREST}[image], name
     assert_same(*both_paths(scene, samples=samples), f"random lane-filtered scene seed {200 + seed}")
 
 

@@ -108,9 +108,9 @@ from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI,
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.threads import NoAliasCompiler, on_threads
 from softras.kernels.maps import _map_normals
-from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, Texels, _lanes_aniso_levels,
-                                     _lanes_bilinear_fixed, _lanes_lod, _quad_levels, _sample_lane,
-                                     texture_tables)
+from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Texels,
+                                     _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _lanes_nearest_fixed,
+                                     _quad_levels, _sample_lane, texture_tables)
 from softras.kernels.texture_beyond import _beyond_lane, beyond_tables
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import libm, ops, sampling, setup, texture, texture_beyond, vertex
@@ -651,7 +651,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     bin_start, bin_tri, tri_i, bbox = bins.start, bins.tri, tris.i, tris.bbox
     depth_func, write_z = state.depth_func, state.write_z
     use_depth = _uses_depth(depth_func, write_z)
-    vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed`, else `_sample_lane`
+    vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed` or `_lanes_nearest_fixed`, else `_sample_lane`
     full_mask = (1 << count) - 1
     box = samples.box
     for j in range(bin_start[tile], bin_start[tile + 1]):
@@ -725,8 +725,13 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             words = state.plain and count == 1 and vectorised     # texels straight into _LI_WORD
             if not state.texture:
                 pass
-            elif vectorised:
+            elif sampler.vectorised == VECTORISED_NEAREST:
                 if block_two:                         # (the level count a constant in each copy)
+                    _lanes_nearest_fixed(m, 2, words, lf, li, lu, texels32, sampler)
+                else:
+                    _lanes_nearest_fixed(m, 1, words, lf, li, lu, texels32, sampler)
+            elif vectorised:
+                if block_two:
                     _lanes_bilinear_fixed(m, 2, words, False, lf, li, lu, texels32, sampler)
                 else:
                     _lanes_bilinear_fixed(m, 1, words, False, lf, li, lu, texels32, sampler)

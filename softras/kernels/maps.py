@@ -14,8 +14,8 @@ import numpy as np
 
 from softras.kernels.lanes import _LF_MAP, _LF_S, _LF_ST0, _LF_T, _LF_TEX, _LI_COV, _whole_vectors
 from softras.kernels.stamp import sources_stamp
-from softras.kernels.texture import (_lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _quad_levels,
-                                     _sample_lane)
+from softras.kernels.texture import (VECTORISED_LINEAR, _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod,
+                                     _quad_levels, _sample_lane)
 from softras.pipeline import texture as texture_stage
 
 
@@ -46,7 +46,7 @@ def _make_map_normals(sources: str):
         inlined: one compiled copy serves every textured tile driver, and it is
         cached on its own (18 s to compile)."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
-        vectorised = sampler.vectorised != 0
+        vectorised = sampler.vectorised == VECTORISED_LINEAR        # (a nearest map: `_sample_lane`)
         if sampler.aniso:
             _lanes_aniso_levels(n, sampler, table[0, 1], table[0, 2], lf, li)
             any_two = False

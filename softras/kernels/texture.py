@@ -41,7 +41,8 @@ MIN_FILTERS = ("nearest", "linear") + texture_stage.MIPMAP_FILTERS
 # mip mode (0 none, 1 nearest, 2 linear), the wraps of s and t (WRAP_CODES),
 # fixed8 (1: llvmpipe's 8.8 fixed-point weights,
 # `softras.pipeline.texture.uses_fixed_point`), the number of levels used,
-# whether the vectorised filter applies (`_lanes_bilinear_fixed`),
+# which vectorised filter applies (VECTORISED_LINEAR: `_lanes_bilinear_fixed`,
+# VECTORISED_NEAREST: `_lanes_nearest_fixed`; 0: none, `_sample_lane`),
 # whether the sampler is llvmpipe's anisotropic one (`_aniso_lane`), for
 # the ripmap filter (`softras.kernels.texture_beyond.ripmap_tables`) the
 # ripmap's levels along u (0: not a ripmap), and which of softras's own
@@ -64,6 +65,8 @@ _EWA = texture_stage.llvmpipe_ewa_table()
 NO_TEXTURE = (Sampler(0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0),
               Texels(np.zeros(4, np.uint8), np.zeros(1, np.uint32), np.zeros((1, 3), np.int64), _EWA))
 
+
+VECTORISED_LINEAR, VECTORISED_NEAREST = 1, 2
 
 _tables_cache: dict = {}
 
@@ -110,14 +113,16 @@ def _texture_tables(tex: texture_stage.MipTexture, fixed_point: bool):
     fixed8 = fixed_point and texture_stage.uses_fixed_point(tex, True)
     min_filter, mag_filter = FILTER_CODES[tex.min_filter.split("_")[0]], FILTER_CODES[tex.mag_filter]
     h, w = levels[0].shape[:2]
-    # The vectorised filter: 8.8 bilinear on every level, wraps by mask or clamp
-    # (a power-of-two level 0 has power-of-two levels all the way down).
-    vectorised = (fixed8 and min_filter == mag_filter == FILTER_CODES["linear"]
-                  and all(mode == "clamp_to_edge" or (size & (size - 1)) == 0
-                          for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))))
+    # The vectorised filters: 8.8 bilinear, or nearest, on every level (one
+    # image filter for minification and magnification), wraps by mask or
+    # clamp (a power-of-two level 0 has power-of-two levels all the way down).
+    vectorised = 0
+    if fixed8 and min_filter == mag_filter and all(mode == "clamp_to_edge" or (size & (size - 1)) == 0
+                                                   for mode, size in ((tex.wrap_s, w), (tex.wrap_t, h))):
+        vectorised = VECTORISED_LINEAR if min_filter == FILTER_CODES["linear"] else VECTORISED_NEAREST
     aniso = texture_stage.effective_anisotropy(tex.max_anisotropy, True) > 1    # (then never fixed8)
     sampler = Sampler(min_filter, mag_filter, mip, WRAP_CODES[tex.wrap_s], WRAP_CODES[tex.wrap_t], int(fixed8),
-                      len(levels), int(vectorised), int(aniso), 0, 0)
+                      len(levels), vectorised, int(aniso), 0, 0)
     return sampler, Texels(flat, flat.view(np.uint32), table, _EWA)
 
 
@@ -488,6 +493,39 @@ def _lanes_bilinear_fixed(n, n_levels, words, red_only, lf, li, lu, texels32, sa
     # (Separate loops: one loop with a branch on ``words`` compiles to both
     # sides computed and masked stores; a channel count read at run time
     # took 6.6 ns a lane for four channels against 2.6 unrolled.)
+    if words:
+        for l in range(n):
+            li[_LI_WORD, l] = _unspread(lu[0, l])
+    else:
+        for l in range(n):
+            for c in range(4):
+                lf[_LF_TEX + c, l] = np.float64(_lane(lu[0, l], c)) / 255.0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _lanes_nearest_fixed(n, n_levels, words, lf, li, lu, texels32, sampler):
+    """`softras.pipeline.texture.sample` (gl, fixed8, nearest image filter,
+    power-of-two or clamped wraps) of every lane on its first level or
+    (n_levels 2) its two levels (the same level twice with mip weight 0
+    where the quad uses one), as `_sample_lane` takes a nearest texel: its
+    address (`_nearest`, by `_wrap_select`), the fetch, the two levels'
+    texels blended as spread lanes (`_lerp_lanes`).  Writes the texel as
+    k/255 floats into the _LF_TEX rows or with ``words`` its RGBA8 word into
+    the _LI_WORD row, as `_lanes_bilinear_fixed` does; the level rows as it
+    reads them (`_quad_levels`)."""
+    wrap_s, wrap_t = sampler.wrap_s, sampler.wrap_t
+    for lv in range(n_levels):
+        for l in range(n):
+            lw, lh = li[_LI_LW + lv, l], li[_LI_LH + lv, l]
+            i = _wrap_select(np.int64(np.floor(np.float32(lf[_LF_S, l]) * np.float32(lw))), lw, wrap_s)
+            j = _wrap_select(np.int64(np.floor(np.float32(lf[_LF_T, l]) * np.float32(lh))), lh, wrap_t)
+            li[_LI_ADDR + lv, l] = li[_LI_BASE + lv, l] + j * lw + i
+    for lv in range(n_levels):
+        for l in range(n):
+            lu[lv, l] = _spread(texels32[li[_LI_ADDR + lv, l]])
+    if n_levels == 2:
+        for l in range(n):
+            lu[0, l] = _lerp_lanes(li[_LI_W8, l], lu[0, l], lu[1, l])
     if words:
         for l in range(n):
             li[_LI_WORD, l] = _unspread(lu[0, l])
