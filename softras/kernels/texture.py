@@ -7,13 +7,20 @@ anisotropic filter): the level of detail per 2x2 quad (`_quad_lod`,
 `_lanes_aniso_levels`), the texel addresses, the fetches and the filters,
 either per lane (`_sample_lane`, any filter, the anisotropic one with the
 stages' own `softras.pipeline.texture.ewa_texel`) or vectorised over the
-lanes (`_lanes_bilinear_fixed`, 8.8 bilinear with power-of-two or clamped
-wraps).  The 8.8 filters run on RGBA8 texels
-spread into 16-bit lanes (`softras.kernels.rgba8`).
+lanes (`_lanes_bilinear_fixed`, 8.8 bilinear, and `_lanes_nearest_fixed`,
+nearest, with power-of-two or clamped wraps).  The 8.8 filters run on
+RGBA8 texels spread into 16-bit lanes (`softras.kernels.rgba8`).
 
 `texture_tables` turns a prepared texture (`softras.pipeline.texture.prepare`)
 into the kernel's tables: a parameter vector (layout below), the mip chain's
 texels as one flat buffer and a level table.
+
+Why one module of ~630 lines: every function here mirrors one stage
+function, `softras.pipeline.texture.sample`, in the order it works (tables,
+addresses and filters, level of detail, the lanes' and the single lane's
+samplers), and the lane filters and the scalar sampler share its address
+and filter helpers; softras's own filters, which mirror
+`softras.pipeline.texture_beyond`, are `softras.kernels.texture_beyond`.
 """
 
 from __future__ import annotations
