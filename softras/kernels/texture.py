@@ -15,7 +15,7 @@ RGBA8 texels spread into 16-bit lanes (`softras.kernels.rgba8`).
 into the kernel's tables: a parameter vector (layout below), the mip chain's
 texels as one flat buffer and a level table.
 
-Why one module of ~630 lines: every function here mirrors one stage
+Why one module of ~640 lines: every function here mirrors one stage
 function, `softras.pipeline.texture.sample`, in the order it works (tables,
 addresses and filters, level of detail, the lanes' and the single lane's
 samplers), and the lane filters and the scalar sampler share its address
@@ -497,9 +497,18 @@ def _lanes_bilinear_fixed(n, n_levels, words, red_only, lf, li, lu, texels32, sa
         for l in range(n):
             fa0, fb0 = li[_LI_FRAC8, l], li[_LI_FRAC8 + 1, l]
             lu[0, l] = _bilerp_lanes(fa0, fb0, lu[0, l], lu[1, l], lu[2, l], lu[3, l])
-    # (Separate loops: one loop with a branch on ``words`` compiles to both
-    # sides computed and masked stores; a channel count read at run time
-    # took 6.6 ns a lane for four channels against 2.6 unrolled.)
+    _store_texels(n, words, lf, li, lu)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _store_texels(n, words, lf, li, lu):
+    """The n lanes' filtered texels (spread lanes in lu's row 0) stored
+    as the lane filters give them: with ``words`` each one's RGBA8 word
+    into the _LI_WORD row, else its channels as k/255 floats into the
+    _LF_TEX rows.  (Separate loops: one loop with a branch on ``words``
+    compiles to both sides computed and masked stores; a channel count
+    read at run time took 6.6 ns a lane for four channels against 2.6
+    unrolled.)"""
     if words:
         for l in range(n):
             li[_LI_WORD, l] = _unspread(lu[0, l])
@@ -533,13 +542,7 @@ def _lanes_nearest_fixed(n, n_levels, words, lf, li, lu, texels32, sampler):
     if n_levels == 2:
         for l in range(n):
             lu[0, l] = _lerp_lanes(li[_LI_W8, l], lu[0, l], lu[1, l])
-    if words:
-        for l in range(n):
-            li[_LI_WORD, l] = _unspread(lu[0, l])
-    else:
-        for l in range(n):
-            for c in range(4):
-                lf[_LF_TEX + c, l] = np.float64(_lane(lu[0, l], c)) / 255.0
+    _store_texels(n, words, lf, li, lu)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
