@@ -104,7 +104,8 @@ def random_scene(seed: int, *, textured: bool = False, width: int = 97, height: 
             image = "nearest" if vectorised == "nearest" else "linear"
             textures[f"t{k}"] = {"procedural": "noise" if k % 2 else "checker", "size": size,
                                  "wrap_s": wrap_s, "wrap_t": wrap_t, "mag_filter": image,
-                                 "min_filter": [image, f"{image}_mipmap_nearest", f"{image}_mipmap_linear"][(seed + k) % 3]}
+                                 "min_filter": [image, f"{image}_mipmap_nearest",
+                                                f"{image}_mipmap_linear"][(seed + k) % 3]}
     elif textured:
         for k, (wrap_s, wrap_t) in enumerate([("repeat", "repeat"), ("clamp_to_edge", "mirrored_repeat"),
                                               ("mirrored_repeat", "clamp_to_edge"), ("repeat", "clamp_to_edge")]):

@@ -651,7 +651,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
     bin_start, bin_tri, tri_i, bbox = bins.start, bins.tri, tris.i, tris.bbox
     depth_func, write_z = state.depth_func, state.write_z
     use_depth = _uses_depth(depth_func, write_z)
-    vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed` or `_lanes_nearest_fixed`, else `_sample_lane`
+    vectorised = sampler.vectorised != 0          # `_lanes_bilinear_fixed` / `_nearest_fixed`, else `_sample_lane`
     full_mask = (1 << count) - 1
     box = samples.box
     for j in range(bin_start[tile], bin_start[tile + 1]):
