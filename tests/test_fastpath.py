@@ -460,6 +460,22 @@ def test_world_attributes_are_the_stages_to_the_bit():
         assert same.all(), f"trial {trial}: {int((~same).sum())} values differ"
 
 
+def test_a_pass_finds_the_eye_and_normal_rows_only_for_lit_draws():
+    """`k_light.viewing`: nothing for a pass of unlit draws (they read
+    neither the eye nor normal rows); for a lit pass the eye and each lit
+    triangle draw's rows, the bits of `vertex.normal_rows`."""
+    from softras import bench_scenes
+    from softras.scene import ordered_draws
+    unlit = softras.load_scene(bench_scenes.parts_scene(64, parts=4))
+    assert k_light.viewing(unlit, ordered_draws(unlit)) is None
+    lit = softras.load_scene(bench_scenes.parts_scene(64, parts=4, textured=True))
+    view = k_light.viewing(lit, ordered_draws(lit))
+    assert np.array_equal(view.eye, vertex.eye_position(lit.camera.view))
+    assert len(view.normal_rows) == 4
+    for draw in lit.draws:
+        assert np.array_equal(view.normal_rows[id(draw)], vertex.normal_rows(draw.world))
+
+
 def test_vertex_and_face_lighting_are_the_stages_to_the_bit():
     """`k_light.base_colors` (Gouraud, per vertex) and `k_light.face_colors`
     (flat, per triangle) give the float64 bits of

@@ -230,7 +230,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
         clear_floats(color, depth, ops.premultiplied(scene.background))
         fb = Framebuffer(NO_WORDS, depth, color)
     draws = ordered_draws(scene)
-    view = viewing(scene, draws)        # (the eye and the lit draws' normal rows, once a pass)
+    view = viewing(scene, draws)        # (the eye and the lit draws' normal rows, once a pass; None unlit)
     batch = []                          # set-up triangle draws not yet drawn (`TileWork`)
     for draw in draws:
         lines = draw.mesh.primitive == "lines"
@@ -398,8 +398,8 @@ def shares(batch: list, n_threads: int) -> int:
     """How many threads draw a batch of `TileWork`: n_threads where a share of
     the estimated work (`draw_work`) takes longer than handing a share over
     (`HAND_OFF_NS`), else one."""
-    work = sum(work.work for work in batch)
-    return n_threads if work / n_threads > HAND_OFF_NS + HAND_OFF_NS_PER_DRAW * len(batch) else 1
+    total = sum(work.work for work in batch)
+    return n_threads if total / n_threads > HAND_OFF_NS + HAND_OFF_NS_PER_DRAW * len(batch) else 1
 
 
 def lane_buffers(n_samples: int) -> LaneBuffers:
