@@ -95,10 +95,10 @@ from softras.kernels.interpolate import (RGBA, _corner_colors, _corners, _lane_a
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES,
                                    LaneBuffers, _whole_vectors)
 from softras.kernels.lines import draw_lines
-from softras.kernels.light import (NO_LIGHTING, Viewing, _phong_words, base_colors, flat_corner_colors, phong_inputs,
+from softras.kernels.light import (NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs,
                                    viewing)
 from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
-                                 _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats, holds_floats)
+                                 _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
 from softras.kernels.rgba32f import _float_fragments, _row_floats_over
@@ -108,7 +108,7 @@ from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI,
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.threads import NoAliasCompiler, on_threads
 from softras.kernels.maps import _map_normals
-from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Texels,
+from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Sampler, Texels,
                                      _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _lanes_nearest_fixed,
                                      _quad_levels, _sample_lane, texture_tables)
 from softras.kernels.texture_beyond import _beyond_lane, beyond_tables
@@ -230,23 +230,37 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
         clear_floats(color, depth, ops.premultiplied(scene.background))
         fb = Framebuffer(NO_WORDS, depth, color)
     draws = ordered_draws(scene)
-    view = viewing(scene, draws)        # (the eye and the lit draws' normal rows, once a pass; None unlit)
+    # (What every draw of the pass reads: the eye and the lit draws' normal
+    # rows, None when unlit, and the camera's P @ V, found once a pass.)
+    this_pass = Pass(scene, fb, samples, texture_fixed_point, texture_filter, viewing(scene, draws),
+                     scene.camera.projection @ scene.camera.view, not rgba8)
     batch = []                          # set-up triangle draws not yet drawn (`TileWork`)
+    batched = 0                         # their mesh triangles
     for draw in draws:
         lines = draw.mesh.primitive == "lines"
         # (Before a line draw, the triangle draws before it.)
-        if batch and (lines or len(batch) == MAX_BATCH
-                      or sum(work.triangles for work in batch) + len(draw.mesh.indices) > BATCH_TRIANGLES):
+        if batch and (lines or len(batch) == MAX_BATCH or batched + len(draw.mesh.indices) > BATCH_TRIANGLES):
             draw_batch(batch)
-            batch = []
+            batch, batched = [], 0
         if lines:
             draw_lines(scene, draw, fb, positions)
             continue
-        work = set_up_triangles(scene, draw, fb, samples, texture_fixed_point, texture_filter, len(batch), view)
+        work = set_up_triangles(this_pass, draw, len(batch))
         if work is not None:
             batch.append(work)
+            batched += work.triangles
     draw_batch(batch)
     return color
+
+
+# What every triangle draw of a pass reads (`set_up_triangles`): the scene,
+# the pass's `softras.kernels.ops.Framebuffer` and `Samples`, the texture
+# options of `render_samples`, the `softras.kernels.light.Viewing` (None
+# when no draw is lit), the camera's projection @ view (4, 4) float64 (the
+# first product of `softras.pipeline.vertex.model_view_projection`: the
+# same bits), and whether the framebuffer is rgba32f.
+Pass = namedtuple("Pass", ["scene", "fb", "samples", "texture_fixed_point", "texture_filter", "view",
+                           "camera", "rgba32f"])
 
 
 # A triangle draw set up and binned, ready for its tile driver: the driver,
@@ -288,47 +302,42 @@ def draw_batch(batch: list) -> None:
     on_threads(share, n_shares)
 
 
-def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, texture_filter=None,
-                     slot: int = 0, view: Viewing | None = None) -> TileWork | None:
+def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
     """`softras.pipeline.render.draw_triangles` in gl precision (see the
-    module docstring) up to the tile driver, for one triangle draw into the
-    `softras.kernels.ops.Framebuffer` fb at the pass's `Samples`: the
-    draw's vertices, clipping, set-up and binning, into set-up buffers for ``slot`` (the draw's place
-    in its batch, `draw_batch`): this thread's reused ones for the first,
-    fresh ones for the others (fewer than BATCH_TRIANGLES triangles in
-    all; reused buffers for each slot would keep the largest draw ever
-    batched there for the life of the process).  view : the pass's
-    `softras.kernels.light.Viewing` (None: found for this draw).  None when
-    no triangle is visible."""
+    module docstring) up to the tile driver, for one triangle draw of the
+    `Pass`: the draw's vertices, clipping, set-up and binning, into set-up
+    buffers for ``slot`` (the draw's place in its batch, `draw_batch`):
+    this thread's reused ones for the first, fresh ones for the others
+    (fewer than BATCH_TRIANGLES triangles in all; reused buffers for each
+    slot would keep the largest draw ever batched there for the life of
+    the process).  None when no triangle is visible."""
+    scene, fb, samples, view = this_pass.scene, this_pass.fb, this_pass.samples, this_pass.view
     offsets = samples.offsets
     mesh = draw.mesh
     width, height = scene.width, scene.height
-    mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
-    clip_pos = vertex.to_clip(mesh.positions, mvp, "gl")
+    clip_pos = vertex.to_clip(mesh.positions, this_pass.camera @ draw.world, "gl")     # (P @ V @ M)
     indices = read_only(mesh.indices, np.int64)             # (one compiled type: `read_only`)
     clipped = Clipped(indices, *clip_stage.triangle_list_gl(clip_pos, indices))
     n = len(clipped.source)
     if n == 0:
         return None
     material = draw.material
+    is_textured = textured(material)
     mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if material.bump_map is not None else NO_MAP
     map_name = material.normal_map if material.normal_map is not None else material.bump_map
     lit = material.shading == "phong"
     # The per-vertex inputs in this thread's reused buffers too: the set-up
     # copies them to the corners, and each draw's set-up is done before the next.
     base = base_colors(scene, draw, _scratch.take, view)                    # straight, per vertex
-    uvs = np.zeros((0, 2))
-    if textured(material):
+    uvs = NO_UVS
+    if is_textured:
         uvs = _scratch.take("uvs", mesh.uvs.shape, np.float64)
         uvs[:] = mesh.uvs.astype(np.float32)
     world_normals, lights, lighting = phong_inputs(scene, draw, _scratch.take, view) if lit else NO_LIGHTING
-
-    def take(name, shape, dtype):       # (slot 0: this thread's reused buffers)
-        return _scratch.take(name, shape, dtype) if slot == 0 else np.empty(shape, dtype)
-
+    take = _scratch.take if slot == 0 else _fresh           # (slot 0: this thread's reused buffers)
     tris = Triangles(take("tri_f", (n, _NF), np.float64), take("tri_i", (n, _NI), np.int64),
                      take("bbox", (n, 4), np.int64), take("colors", (n, 3, 4), np.float64),
-                     take("uv", (n if textured(material) else 1, 3, 2), np.float64),
+                     take("uv", (n if is_textured else 1, 3, 2), np.float64),
                      take("lit", (n, 3, world_normals.shape[1]) if lit else (1, 3, 6), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
     _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs, world_normals), tris, _scratch)
@@ -343,27 +352,34 @@ def set_up_triangles(scene: Scene, draw, fb, samples, texture_fixed_point, textu
     sampler, texels = NO_TEXTURE
     if material.texture is not None:
         tex = texture.prepare(scene.textures[material.texture])
-        beyond = texture_beyond.filter_for(texture_filter, tex.name)
+        beyond = texture_beyond.filter_for(this_pass.texture_filter, tex.name)
         sampler, texels = (beyond_tables(tex, beyond) if beyond is not None
-                           else texture_tables(tex, texture_fixed_point))
-    map_sampler, map_texels = (texture_tables(texture.prepare(scene.textures[map_name]), texture_fixed_point)
+                           else texture_tables(tex, this_pass.texture_fixed_point))
+    map_sampler, map_texels = (texture_tables(texture.prepare(scene.textures[map_name]), this_pass.texture_fixed_point)
                                if map_name is not None else NO_TEXTURE)
-    bins = Bins(bin_start, bin_tri, tiles_x)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
     cutoff = material.alpha_cutoff
-    rgba32f = holds_floats(fb)
+    rgba32f = this_pass.rgba32f
     state = DrawState(depth_func, bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend],
                       bool(material.texture is not None and not flat and not lit and cutoff is None
                            and not rgba32f and plain_colors(base)), flat, lit,
                       cutoff is not None, float(cutoff or 0.0), material.texture is not None, mapped,
                       float(material.bump_scale), rgba32f)
-    is_textured = textured(material)
     draw_tiles = _DRAW_TILES[driver_samples(len(offsets), is_textured), is_textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
-    records = (tuple(bins), tuple(tris), tuple(samples), tuple(fb), tuple(state), sampler, tuple(texels), map_sampler,
-               tuple(map_texels), lights, tuple(lighting))
+    records = ((bin_start, bin_tri, tiles_x), tuple(tris), tuple(samples), tuple(fb), tuple(state), tuple(sampler),
+               tuple(texels), tuple(map_sampler), tuple(map_texels), lights, tuple(lighting))
     work = draw_work(len(bin_tri), pixels, is_textured or lit, len(offsets))
     return TileWork(draw_tiles, records, len(offsets), work, len(mesh.indices))
+
+
+def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:
+    """A new array (the ``take`` of a batch's later draws, `set_up_triangles`)."""
+    return np.empty(shape, dtype)
+
+
+# An untextured draw's vertex uvs (`_setup`'s vertex_values).
+NO_UVS = np.zeros((0, 2))
 
 
 # A draw's work as `draw_work` estimates it, in ns on one thread: per
@@ -472,8 +488,8 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         `DrawState`, the texture's `Sampler` and `Texels` tex, the normal or
         bump map's (map_sampler, map_tex), and for Phong shading the light
         table and `Lighting` (`softras.kernels.light`), with this share's
-        own `LaneBuffers` lanes.  The records but the sampler come as plain
-        tuples (`softras.kernels.setup.Clipped`) and are named again here.
+        own `LaneBuffers` lanes.  The records come as plain tuples
+        (`softras.kernels.setup.Clipped`) and are named again here.
         """
         stamp = sources                 # noqa: F841  (a closure variable: the cache key, `softras.kernels.stamp`)
         n_tiles = bins[0].shape[0] - 1
@@ -485,16 +501,18 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         samples_r = Samples(*samples)
         fb_r = Framebuffer(*fb)
         state_r = DrawState(*state)
+        sampler_r = Sampler(*sampler)
         tex_r = Texels(*tex)
+        map_sampler_r = Sampler(*map_sampler)
         map_r = Texels(*map_tex)
         lanes_r = LaneBuffers(*lanes)
         for tile in range(r, n_tiles, n_threads):
             if textured and n_samples == 1:
-                _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r, map_sampler,
+                _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler_r, tex_r, map_sampler_r,
                                map_r, lights, lighting, lanes_r, n_samples)
             elif textured:
-                _textured_tile_called(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler, tex_r,
-                                      map_sampler, map_r, lights, lighting, lanes_r, n_samples)
+                _textured_tile_called(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler_r, tex_r,
+                                      map_sampler_r, map_r, lights, lighting, lanes_r, n_samples)
             else:
                 _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes_r,
                            count, row_runs)
