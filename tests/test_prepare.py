@@ -50,18 +50,20 @@ def started(monkeypatch):
 
 @pytest.mark.parametrize("textured", [False, True])
 def test_the_preparation_scene_reaches_every_kernel(textured):
-    """Every draw but the last crosses the near plane (the clipper's
+    """Every draw but the last two crosses the near plane (the clipper's
     generated triangles) with at least PARALLEL_SETUP triangles (the
-    parallel set-up), the last has fewer (the set-up in one call); every
-    shading model; textured: a filter of each kind, lanes and scalar; and
-    with lines, `line_preparation_scene`'s draw."""
+    parallel set-up), the last two have fewer, one unlit (the front end in
+    one call, `softras.kernels.front_end`), one lit (the set-up in one
+    call); every shading model; textured: a filter of each kind, lanes and
+    scalar; and with lines, `line_preparation_scene`'s draw."""
     scene = softras.load_scene(prepare.preparation_scene(4, textured, lines=False))
     assert fastpath.unsupported(scene, precision="gl", clipping=None) is None
     assert {d.material.shading for d in scene.draws} == {"unlit", "flat", "gouraud", "phong"}
     with_lines = softras.load_scene(prepare.preparation_scene(4, textured))
-    assert [d.mesh.primitive for d in with_lines.draws] == ["triangles"] * 5 + ["lines"]
-    assert 0 < len(scene.draws[-1].mesh.indices) < k_setup.PARALLEL_SETUP
-    for draw in scene.draws[:-1]:
+    assert [d.mesh.primitive for d in with_lines.draws] == ["triangles"] * 6 + ["lines"]
+    assert [d.material.shading for d in scene.draws[-2:]] == ["unlit", "gouraud"]
+    assert all(0 < len(d.mesh.indices) < k_setup.PARALLEL_SETUP for d in scene.draws[-2:])
+    for draw in scene.draws[:-2]:
         mvp = vertex.model_view_projection(scene.camera.projection, scene.camera.view, draw.world)
         source, slot, _, _ = clip_stage.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"),
                                                           draw.mesh.indices)
@@ -257,13 +259,13 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
     verifier's derived scenes are fresh arrays): the kernels' inputs go
     through `softras.kernels.scratch.read_only`, without which the line
     kernel, the clipper and the set-up compiled again at a user's first
-    render of such a scene.  A draw of a few triangles is set up by
-    `_setup_range` alone, and an MSAA picture is resolved by
+    render of such a scene.  An unlit draw of a few triangles takes
+    `softras.kernels.front_end`, a lit one `_setup_range` alone, and an MSAA picture is resolved by
     `_resolve_bytes` (GL's patterns) or `_resolve_exact` (any other), an
     rgba32f one by `softras.kernels.ops._resolve_box`: the
     preparation reaches them too."""
     before, after = new_specialisations(
-        tmp_path, ["draw", "light", "lines", "maps", "rgba32f", "setup", "texture", "texture_beyond"],
+        tmp_path, ["draw", "front_end", "light", "lines", "maps", "rgba32f", "setup", "texture", "texture_beyond"],
         ["clip", "ops", "rasterize", "vertex", "lines"],
         "from softras.kernels import draw\nfor variant in [*draw._DRAW_TILES, prepare.LINES]:\n"
         "    prepare.prepare(variant)",
@@ -274,6 +276,7 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
         assert before[f"softras.kernels.draw._DRAW_TILES[{key}]"] == 1, f"the preparation missed the driver {key}"
     assert before["softras.kernels.lines._DRAW_LINES"] == 1, "the preparation did not compile the line kernel"
     assert before["softras.pipeline.clip.triangle_list_gl"] == 1
+    assert before["softras.kernels.front_end._front_end"] == 1, "the preparation missed the front end in one call"
     assert before["softras.pipeline.ops._resolve_bytes"] == 1, "the preparation did not compile the MSAA resolve"
     assert before["softras.kernels.rgba32f._resolve_box"] == 1, "the preparation missed the rgba32f resolve"
     assert {name: n for name, n in after.items() if n != before[name]} == {}

@@ -16,7 +16,9 @@ naming the readable function it must equal:
    pixel bounding box, depth plane, and the attributes at the corners (clip
    weights x source vertex values, in the pipeline's order);
 4. binning (`softras.kernels.rasterize._bin`): the visible triangles are
-   listed, in draw order, in every 64x64-pixel tile their bounding box touches;
+   listed, in draw order, in every 64x64-pixel tile their bounding box touches
+   (1-4 in one compiled call for a small unlit or flat draw,
+   `softras.kernels.front_end`);
 5. the tile driver (here: `_make_draw_tiles`, one per sample count and
    texturing): tiles in parallel (shares of the tiles on threads,
    `softras.kernels.threads`: a pixel belongs to one tile, so tiles never
@@ -90,6 +92,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 import numba  # noqa: E402  (after the environment default above)
 import numpy as np
 
+from softras.kernels.front_end import _front_end
 from softras.kernels.interpolate import (RGBA, _corner_colors, _corners, _lane_alpha_test, _lane_depths,
                                         _lane_weights, _lane_words, _shade_word, _weights_at, plain_colors)
 from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI_PX, _LI_PY, _LI_Z, _NLF, LANES,
@@ -103,7 +106,7 @@ from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _ed
                                        _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
 from softras.kernels.rgba32f import _float_fragments, _row_floats_over
 from softras.kernels.scratch import _Scratch, read_only
-from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, Clipped,
+from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, PARALLEL_SETUP, Clipped,
                                    Triangles, _setup)
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.threads import NoAliasCompiler, on_threads
@@ -310,45 +313,51 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
     this thread's reused ones for the first, fresh ones for the others
     (fewer than BATCH_TRIANGLES triangles in all; reused buffers for each
     slot would keep the largest draw ever batched there for the life of
-    the process).  None when no triangle is visible."""
-    scene, fb, samples, view = this_pass.scene, this_pass.fb, this_pass.samples, this_pass.view
-    offsets = samples.offsets
-    mesh = draw.mesh
-    width, height = scene.width, scene.height
-    clip_pos = vertex.to_clip(mesh.positions, this_pass.camera @ draw.world, "gl")     # (P @ V @ M)
+    the process).  An unlit or flat draw of fewer than PARALLEL_SETUP
+    mesh triangles takes the four in one compiled call
+    (`softras.kernels.front_end`), the others one call each, the set-up in
+    parallel chunks from PARALLEL_SETUP clipped triangles (`_setup`).
+    None when no triangle is visible."""
+    scene, samples, view = this_pass.scene, this_pass.samples, this_pass.view
+    mesh, material = draw.mesh, draw.material
+    mvp = this_pass.camera @ draw.world                     # (P @ V @ M: model_view_projection's bits)
     indices = read_only(mesh.indices, np.int64)             # (one compiled type: `read_only`)
-    clipped = Clipped(indices, *clip_stage.triangle_list_gl(clip_pos, indices))
-    n = len(clipped.source)
-    if n == 0:
-        return None
-    material = draw.material
     is_textured = textured(material)
-    mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if material.bump_map is not None else NO_MAP
-    map_name = material.normal_map if material.normal_map is not None else material.bump_map
     lit = material.shading == "phong"
-    # The per-vertex inputs in this thread's reused buffers too: the set-up
-    # copies them to the corners, and each draw's set-up is done before the next.
-    base = base_colors(scene, draw, _scratch.take, view)                    # straight, per vertex
-    uvs = NO_UVS
-    if is_textured:
-        uvs = _scratch.take("uvs", mesh.uvs.shape, np.float64)
-        uvs[:] = mesh.uvs.astype(np.float32)
-    world_normals, lights, lighting = phong_inputs(scene, draw, _scratch.take, view) if lit else NO_LIGHTING
     take = _scratch.take if slot == 0 else _fresh           # (slot 0: this thread's reused buffers)
-    tris = Triangles(take("tri_f", (n, _NF), np.float64), take("tri_i", (n, _NI), np.int64),
-                     take("bbox", (n, 4), np.int64), take("colors", (n, 3, 4), np.float64),
-                     take("uv", (n if is_textured else 1, 3, 2), np.float64),
-                     take("lit", (n, 3, world_normals.shape[1]) if lit else (1, 3, 6), np.float64))
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
-    _setup(clip_pos, clipped, width, height, cull, offsets, (base, uvs, world_normals), tris, _scratch)
-    tiles_x = (width + TILE - 1) // TILE
-    tiles_y = (height + TILE - 1) // TILE
-    visible, bin_start, bin_tri, pixels = _bin(tris.i, tris.bbox, tiles_x, tiles_y)
+    if len(indices) < PARALLEL_SETUP and material.shading in ("unlit", "flat"):
+        # (Vertex values before clipping here: they need no lighting.)
+        base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit)
+        rows = len(indices)
+        while True:
+            tris = _triangle_buffers(take, rows, is_textured, lit, world_normals.shape[1])
+            n, source, visible, bin_start, bin_tri, pixels = _front_end(
+                read_only(mesh.positions, np.float32), mvp.astype(np.float32), indices, scene.width,
+                scene.height, cull, samples.offsets, (base, uvs, world_normals), tuple(tris),
+                (_scratch.take("vertex_f", (len(mesh.positions), 4), np.float64),
+                 _scratch.take("vertex_i", (len(mesh.positions), 2), np.int64)), *_tiles(scene))
+            if n <= rows:
+                break
+            rows = n                                        # (clipping made fans: room for them)
+    else:
+        clip_pos = vertex.to_clip(mesh.positions, mvp, "gl")
+        clipped = Clipped(indices, *clip_stage.triangle_list_gl(clip_pos, indices))
+        if len(clipped.source) == 0:
+            return None
+        base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit)
+        tris = _triangle_buffers(take, len(clipped.source), is_textured, lit, world_normals.shape[1])
+        _setup(clip_pos, clipped, scene.width, scene.height, cull, samples.offsets, (base, uvs, world_normals),
+               tris, _scratch)
+        source = clipped.source
+        visible, bin_start, bin_tri, pixels = _bin(tris.i, tris.bbox, *_tiles(scene))
     if len(visible) == 0:
         return None
     flat = material.shading == "flat"
     if flat:                # (only the visible triangles are binned: the others' colours are never read)
-        tris.colors[visible] = flat_corner_colors(scene, draw, base, clipped.source[visible], view)
+        tris.colors[visible] = flat_corner_colors(scene, draw, base, source[visible], view)
+    mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if material.bump_map is not None else NO_MAP
+    map_name = material.normal_map if material.normal_map is not None else material.bump_map
     sampler, texels = NO_TEXTURE
     if material.texture is not None:
         tex = texture.prepare(scene.textures[material.texture])
@@ -365,12 +374,46 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
                            and not rgba32f and plain_colors(base)), flat, lit,
                       cutoff is not None, float(cutoff or 0.0), material.texture is not None, mapped,
                       float(material.bump_scale), rgba32f)
-    draw_tiles = _DRAW_TILES[driver_samples(len(offsets), is_textured), is_textured]
+    n_samples = len(samples.offsets)
+    draw_tiles = _DRAW_TILES[driver_samples(n_samples, is_textured), is_textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
-    records = ((bin_start, bin_tri, tiles_x), tuple(tris), tuple(samples), tuple(fb), tuple(state), tuple(sampler),
-               tuple(texels), tuple(map_sampler), tuple(map_texels), lights, tuple(lighting))
-    work = draw_work(len(bin_tri), pixels, is_textured or lit, len(offsets))
-    return TileWork(draw_tiles, records, len(offsets), work, len(mesh.indices))
+    records = ((bin_start, bin_tri, _tiles(scene)[0]), tuple(tris), tuple(samples), tuple(this_pass.fb),
+               tuple(state), tuple(sampler), tuple(texels), tuple(map_sampler), tuple(map_texels), lights,
+               tuple(lighting))
+    work = draw_work(len(bin_tri), pixels, is_textured or lit, n_samples)
+    return TileWork(draw_tiles, records, n_samples, work, len(mesh.indices))
+
+
+def _vertex_inputs(scene: Scene, draw, view, is_textured: bool, lit: bool) -> tuple:
+    """A triangle draw's per-vertex inputs, in this thread's reused buffers
+    (the set-up copies them to the corners, and each draw's set-up is done
+    before the next): straight base colours (V, 4) (`base_colors`: lit by
+    Gouraud), uvs rounded to float32 (V, 2) or NO_UVS, and for Phong
+    shading the world positions and normals, light table and `Lighting`
+    (`phong_inputs`), else NO_LIGHTING."""
+    mesh = draw.mesh
+    base = base_colors(scene, draw, _scratch.take, view)
+    uvs = NO_UVS
+    if is_textured:
+        uvs = _scratch.take("uvs", mesh.uvs.shape, np.float64)
+        uvs[:] = mesh.uvs.astype(np.float32)
+    world_normals, lights, lighting = phong_inputs(scene, draw, _scratch.take, view) if lit else NO_LIGHTING
+    return base, uvs, world_normals, lights, lighting
+
+
+def _triangle_buffers(take, rows: int, is_textured: bool, lit: bool, lit_columns: int) -> Triangles:
+    """`Triangles` for ``rows`` set-up triangles from ``take(name, shape,
+    dtype)``: the corner uvs and lit attributes (lit_columns wide) only
+    when the draw reads them, else one unused row."""
+    return Triangles(take("tri_f", (rows, _NF), np.float64), take("tri_i", (rows, _NI), np.int64),
+                     take("bbox", (rows, 4), np.int64), take("colors", (rows, 3, 4), np.float64),
+                     take("uv", (rows if is_textured else 1, 3, 2), np.float64),
+                     take("lit", (rows, 3, lit_columns) if lit else (1, 3, 6), np.float64))
+
+
+def _tiles(scene: Scene) -> tuple[int, int]:
+    """The picture's tiles across and down (`softras.kernels.rasterize.TILE`)."""
+    return (scene.width + TILE - 1) // TILE, (scene.height + TILE - 1) // TILE
 
 
 def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:

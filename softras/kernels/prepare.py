@@ -270,10 +270,12 @@ def preparation_scene(samples: int, textured: bool, lines: bool = True) -> dict:
     parallel set-up, `softras.kernels.setup.PARALLEL_SETUP`), crossing the
     near plane (the clipper), drawn unlit, flat, Gouraud and
     Phong, textured with a mipmapped filter (the lane filter) and a nearest
-    one (the scalar filter) when ``textured``, blended and depth-tested; a
-    draw of two triangles (set up in one call, `softras.kernels.setup._setup_range`,
-    which a scene under PARALLEL_SETUP triangles calls directly); and with
-    ``lines`` the draw of `line_preparation_scene`."""
+    one (the scalar filter) when ``textured``, blended and depth-tested; two
+    draws of two triangles, unlit (its front end in one call,
+    `softras.kernels.front_end`) and Gouraud-shaded (set up in one call,
+    `softras.kernels.setup._setup_range`, which a lit draw under
+    PARALLEL_SETUP triangles calls directly); and with ``lines`` the draw
+    of `line_preparation_scene`."""
     from softras.kernels.setup import PARALLEL_SETUP
 
     cols = 2 * int(np.ceil(np.sqrt(PARALLEL_SETUP / 2)))     # (about half of it is inside the frustum)
@@ -285,9 +287,10 @@ def preparation_scene(samples: int, textured: bool, lines: bool = True) -> dict:
         nodes.append({"name": shading, "rotate": [-80, 1, 0, 0], "translate": [0.3 * k - 0.45, -0.5, 0],
                       "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [4, 8]},
                       "material": material, "blend": "over" if k == 3 else "none"})
-    nodes.append({"name": "few", "translate": [0, 0, -1],        # (textured too: the same variant)
-                  "mesh": {"procedural": "grid", "cols": 1, "rows": 1, "size": [0.5, 0.5]},
-                  "material": {"texture": "nearest"} if textured else {}})
+    for k, shading in enumerate(("unlit", "gouraud")):           # (textured too: the same variant)
+        nodes.append({"name": f"few_{shading}", "translate": [0.6 * k - 0.3, 0, -1],
+                      "mesh": {"procedural": "grid", "cols": 1, "rows": 1, "size": [0.5, 0.5]},
+                      "material": {"shading": shading, **({"texture": "nearest"} if textured else {})}})
     if lines:
         nodes += line_preparation_scene()["nodes"]
     textures = {name: {"procedural": "checker", "size": [16, 16], "min_filter": name + "_mipmap_linear"
