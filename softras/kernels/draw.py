@@ -550,6 +550,8 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         map_r = Texels(*map_tex)
         lanes_r = LaneBuffers(*lanes)
         for tile in range(r, n_tiles, n_threads):
+            if bins_r.start[tile] == bins_r.start[tile + 1]:
+                continue                # (no triangle there: nor the tile functions' set-up)
             if textured and n_samples == 1:
                 _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler_r, tex_r, map_sampler_r,
                                map_r, lights, lighting, lanes_r, n_samples)
