@@ -100,8 +100,11 @@ def pytest_sessionstart(session):
         # Every variant: the tile drivers, exact precision's kernels and the
         # line kernel, handed out as the workers ask: each worker takes the
         # next variant in this order that no other process is preparing
-        # (`prepare.prepare` without waiting for its lock), and waits only
-        # when every variant left is being prepared elsewhere.  Longest
+        # (`prepare.prepare` without waiting for its lock), and when every
+        # variant left is being prepared elsewhere it goes on to its tests
+        # (a test that needs such a variant waits for it then, in
+        # `prepare.ensure`; waiting here left a core idle ~9 s of a fresh
+        # clone's run, docs/speed.md, "Forty-fourth round").  Longest
         # first.  The first worker begins with exact and then compiles the
         # stages' loops (their spec bounds render in exact precision); the
         # others leave exact to it (else one of them could take exact's lock
@@ -121,11 +124,8 @@ def pytest_sessionstart(session):
             gc.freeze()
         else:
             order.append(order.pop(0))
-        pending = order
-        while pending:
-            pending = [variant for variant in pending if not prepare.prepare(variant, wait=False, freeze=True)]
-            if pending:
-                prepare.prepare(pending[0], freeze=True)    # (all being prepared elsewhere: wait for one)
+        for variant in order:
+            prepare.prepare(variant, wait=False, freeze=True)
     if not session.config.getoption("--update-golden", default=False):
         return
     from softras.cli import main
