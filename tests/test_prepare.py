@@ -260,8 +260,9 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
     through `softras.kernels.scratch.read_only`, without which the line
     kernel, the clipper and the set-up compiled again at a user's first
     render of such a scene.  An unlit draw of a few triangles takes
-    `softras.kernels.front_end`, a lit one `_setup_range` alone, and an MSAA picture is resolved by
-    `_resolve_bytes` (GL's patterns) or `_resolve_exact` (any other), an
+    `softras.kernels.front_end`, a lit one `_setup_range` alone, and an
+    MSAA picture is resolved by `_resolve_bytes` (GL's patterns) or
+    `_resolve_exact` (any other), an
     rgba32f one by `softras.kernels.ops._resolve_box`: the
     preparation reaches them too."""
     before, after = new_specialisations(

@@ -69,7 +69,7 @@ only for what it uses: the texture stage runs only
 for a textured draw, blending only with a blend mode (the kernel branches on
 per-draw constants outside of the per-pixel work).
 
-Why one module of ~600 lines: the tile drivers (`_make_draw_tiles`), the
+Why one module of ~1100 lines: the tile drivers (`_make_draw_tiles`), the
 tile functions they inline (`_flat_tile`, `_flat_block`, `_textured_tile`;
 called, not inlined, they drew 6-18 % slower, docs/speed.md, "Compile
 time" and "Twenty-seventh round"), and the Python side that picks a
