@@ -267,7 +267,13 @@ class LocalRunner:
     def command(self, command: str, work: Path, env: dict, number: int) -> tuple[str, str]:
         script = work.parent / f"{work.name}-step{number}.sh"
         script.write_text(command + "\n")
-        full = {key: value for key, value in os.environ.items() if key not in ("GALLIUM_DRIVER",)}
+        # (Without NUMBA_CACHE_DIR: numba files a cache there by the source
+        # folder's path as imported, and a job imports softras through its
+        # folder of links, so each job compiled every kernel again, ten
+        # minutes of a suite run with it set; without it numba's cache is
+        # the checkout's __pycache__, shared through the links, docs/speed.md,
+        # "Measuring a cold suite".  scripts/mutate.py does the same.)
+        full = {key: value for key, value in os.environ.items() if key not in ("GALLIUM_DRIVER", "NUMBA_CACHE_DIR")}
         full |= env
         full["PATH"] = f"{self.bin}{os.pathsep}{os.environ.get('PATH', '')}"
         full["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))
