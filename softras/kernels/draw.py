@@ -107,7 +107,7 @@ from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _ed
 from softras.kernels.rgba32f import _float_fragments, _row_floats_over
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, PARALLEL_SETUP, Clipped,
-                                   Triangles, _setup)
+                                   Triangles, _setup, window_buffers)
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.threads import NoAliasCompiler, on_threads
 from softras.kernels.maps import _map_normals
@@ -326,6 +326,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
     lit = material.shading == "phong"
     take = _scratch.take if slot == 0 else _fresh           # (slot 0: this thread's reused buffers)
     cull = CULL_CODES[setup.window_cull(draw.cull, scene.front_face)]
+    tiles_x, tiles_y = (scene.width + TILE - 1) // TILE, (scene.height + TILE - 1) // TILE
     if len(indices) < PARALLEL_SETUP and material.shading in ("unlit", "flat"):
         # (Vertex values before clipping here: they need no lighting.)
         base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit)
@@ -335,8 +336,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
             n, source, visible, bin_start, bin_tri, pixels = _front_end(
                 read_only(mesh.positions, np.float32), mvp.astype(np.float32), indices, scene.width,
                 scene.height, cull, samples.offsets, (base, uvs, world_normals), tuple(tris),
-                (_scratch.take("vertex_f", (len(mesh.positions), 4), np.float64),
-                 _scratch.take("vertex_i", (len(mesh.positions), 2), np.int64)), *_tiles(scene))
+                window_buffers(_scratch, len(mesh.positions)), tiles_x, tiles_y)
             if n <= rows:
                 break
             rows = n                                        # (clipping made fans: room for them)
@@ -350,7 +350,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
         _setup(clip_pos, clipped, scene.width, scene.height, cull, samples.offsets, (base, uvs, world_normals),
                tris, _scratch)
         source = clipped.source
-        visible, bin_start, bin_tri, pixels = _bin(tris.i, tris.bbox, *_tiles(scene))
+        visible, bin_start, bin_tri, pixels = _bin(tris.i, tris.bbox, tiles_x, tiles_y)
     if len(visible) == 0:
         return None
     flat = material.shading == "flat"
@@ -377,7 +377,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
     n_samples = len(samples.offsets)
     draw_tiles = _DRAW_TILES[driver_samples(n_samples, is_textured), is_textured]
     # (The records as plain tuples: see `softras.kernels.setup.Clipped`.)
-    records = ((bin_start, bin_tri, _tiles(scene)[0]), tuple(tris), tuple(samples), tuple(this_pass.fb),
+    records = ((bin_start, bin_tri, tiles_x), tuple(tris), tuple(samples), tuple(this_pass.fb),
                tuple(state), tuple(sampler), tuple(texels), tuple(map_sampler), tuple(map_texels), lights,
                tuple(lighting))
     work = draw_work(len(bin_tri), pixels, is_textured or lit, n_samples)
@@ -409,11 +409,6 @@ def _triangle_buffers(take, rows: int, is_textured: bool, lit: bool, lit_columns
                      take("bbox", (rows, 4), np.int64), take("colors", (rows, 3, 4), np.float64),
                      take("uv", (rows if is_textured else 1, 3, 2), np.float64),
                      take("lit", (rows, 3, lit_columns) if lit else (1, 3, 6), np.float64))
-
-
-def _tiles(scene: Scene) -> tuple[int, int]:
-    """The picture's tiles across and down (`softras.kernels.rasterize.TILE`)."""
-    return (scene.width + TILE - 1) // TILE, (scene.height + TILE - 1) // TILE
 
 
 def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:

@@ -65,14 +65,21 @@ def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris,
     (`softras.kernels.draw._Scratch`), for the per-vertex tables."""
     # The window corners of the input vertices, once per vertex (a vertex is
     # shared by ~6 triangles).
-    vertex_f = scratch.take("vertex_f", (len(clip_pos), 4), np.float64)
-    vertex_i = scratch.take("vertex_i", (len(clip_pos), 2), np.int64)
+    vertex_f, vertex_i = window_buffers(scratch, len(clip_pos))
     _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
     args = ((vertex_f, vertex_i), tuple(clipped), width, height, cull, offsets, vertex_values, tuple(tris))
     if len(clipped.source) < PARALLEL_SETUP:
         _setup_range(0, len(clipped.source), *args)
     else:
         _setup_chunks(*args, 4 * numba.get_num_threads())     # (asked only here: 3.6 us a call)
+
+
+def window_buffers(scratch, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """The tables `_window_vertices` fills for n_vertices input vertices,
+    from the caller's reused buffers (`softras.kernels.draw._Scratch`):
+    vertex_f (V, 4) float64 and vertex_i (V, 2) int64."""
+    return (scratch.take("vertex_f", (n_vertices, 4), np.float64),
+            scratch.take("vertex_i", (n_vertices, 2), np.int64))
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
