@@ -286,7 +286,13 @@ def _resolve_bytes(stored, out):
     side by side, which LLVM turns into SIMD (a loop per pixel and channel
     over the samples did not: 5.6 ms against 3.3 ms for 512^2 at 4 samples,
     medians of 30 alternating, two threads).  Each sum is still the samples'
-    in sample order."""
+    in sample order.
+
+    At 4 samples (GL's MSAA on llvmpipe) the row's products come first, in
+    one loop over its bytes as they lie, then each pixel's four are summed:
+    512^2 in 0.34 ms against 0.60 a sample at a time (medians of 50, two
+    threads; the same bytes).  At 2, 8 and 16 samples that order was slower
+    (0.25, 0.74 and 1.51 ms against 0.16, 0.60 and 1.22 for 256 x 512)."""
     height, width, n_samples = stored.shape[0], stored.shape[1], stored.shape[2]
     inv_255 = np.float32(1.0 / 255.0)
     inv_n = np.float32(1.0 / n_samples)
@@ -294,13 +300,23 @@ def _resolve_bytes(stored, out):
         row = stored[y].reshape(width, n_samples * 4)          # pixel x: sample s's channel c at 4 s + c
         top = out[height - 1 - y].reshape(width * 4)
         total = np.empty(width * 4, np.float32)
-        for x in range(width):
-            for c in range(4):
-                total[4 * x + c] = np.float32(row[x, c]) * inv_255
-        for s in range(1, n_samples):
+        if n_samples == 4:
+            flat = stored[y].reshape(width * 16)
+            products = np.empty(width * 16, np.float32)
+            for i in range(width * 16):
+                products[i] = np.float32(flat[i]) * inv_255
             for x in range(width):
                 for c in range(4):
-                    total[4 * x + c] += np.float32(row[x, 4 * s + c]) * inv_255
+                    total[4 * x + c] = (((products[16 * x + c] + products[16 * x + 4 + c])
+                                         + products[16 * x + 8 + c]) + products[16 * x + 12 + c])
+        else:
+            for x in range(width):
+                for c in range(4):
+                    total[4 * x + c] = np.float32(row[x, c]) * inv_255
+            for s in range(1, n_samples):
+                for x in range(width):
+                    for c in range(4):
+                        total[4 * x + c] += np.float32(row[x, 4 * s + c]) * inv_255
         for j in range(width * 4):
             value = np.float32(np.float32(total[j] * inv_n) * np.float32(255.0))
             value = min(max(value, np.float32(0.0)), np.float32(255.0))
