@@ -182,7 +182,7 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
     box = _sample_box(offsets)
     white = RGBA(1.0, 1.0, 1.0, 1.0)
     for line in range(table.drawn.shape[0]):
-        if not table.drawn[line]:
+        if not table.drawn[line] or not _in_bands(table.region[line, 2], table.region[line, 3], r, n_threads):
             continue
         # (The line's rows as tuples of scalars, for the stage's functions.)
         qx = (table.qx[line, 0], table.qx[line, 1], table.qx[line, 2], table.qx[line, 3])
@@ -238,6 +238,18 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
                 else:
                     _write_word(color32, py, px, passed, n_samples, blend,
                                 _color_word(red, green, blue, alpha, white))
+
+
+@numba.njit(inline="always")
+def _in_bands(y0, y1, r, n_threads):
+    """Whether any of the rows y0 .. y1 lies in thread r's bands of BAND
+    rows (r, r + n_threads, ...: `_cover_lines`): a short line in another
+    thread's band is passed over before its set-up for coverage (most
+    lines of a wireframe lie in one or two bands)."""
+    for band in range(y0 // BAND, min(y1 // BAND, y0 // BAND + n_threads - 1) + 1):
+        if band % n_threads == r:
+            return True
+    return False
 
 
 _DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize, clip_stage))
