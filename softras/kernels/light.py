@@ -312,6 +312,10 @@ def _lit_point(r, g, b, px, py, pz, nx, ny, nz, lights, lighting):
     return out_r, out_g, out_b
 
 
+# Vertices a chunk of `_vertex_lighting` (its parallel unit) lights together.
+VERTEX_CHUNK = 256
+
+
 def _make_lighting_loops(sources: str):
     """`_vertex_lighting` and `_face_lighting`, cached with the stamp of
     this folder's and `softras.pipeline.libm`'s sources as a closure
@@ -323,14 +327,44 @@ def _make_lighting_loops(sources: str):
         """Gouraud's lit vertex colours into out (V, 4): base (V, 4) straight,
         world (V, 6) the world positions and world normals (not unit:
         normalised here as `softras.pipeline.vertex.world_normals` does,
-        `_world_attributes`), alpha kept.  Vertices in parallel (a scan's
-        36k vertices: 4.4 ms on one thread)."""
+        `_world_attributes`), alpha kept.  `_lit_point`'s operations in
+        its order, over chunks of VERTEX_CHUNK vertices in parallel, each
+        chunk in passes as `_phong_colors` takes its lanes (the unit
+        vectors; per light the dot products, the power, the terms), so
+        that each pass compiles to SIMD: a scan's 36k vertices in 0.64 ms
+        against 0.92 a vertex at a time (two threads)."""
         stamp = sources                 # noqa: F841  (the cache key)
-        for v in numba.prange(base.shape[0]):
-            nx, ny, nz = _unit(world[v, 3], world[v, 4], world[v, 5])
-            out[v, 0], out[v, 1], out[v, 2] = _lit_point(base[v, 0], base[v, 1], base[v, 2], world[v, 0],
-                                                         world[v, 1], world[v, 2], nx, ny, nz, lights, lighting)
-            out[v, 3] = base[v, 3]
+        eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
+        whole = _whole_exponent(shininess)
+        n = base.shape[0]
+        for chunk in numba.prange((n + VERTEX_CHUNK - 1) // VERTEX_CHUNK):
+            first = chunk * VERTEX_CHUNK
+            m = min(n - first, VERTEX_CHUNK)
+            vectors = np.empty((8, VERTEX_CHUNK))      # unit normal, unit view vector, N.L, spec
+            for i in range(m):
+                v = first + i
+                vectors[0, i], vectors[1, i], vectors[2, i] = _unit(world[v, 3], world[v, 4], world[v, 5])
+                vectors[3, i], vectors[4, i], vectors[5, i] = _unit(eye_x - world[v, 0], eye_y - world[v, 1],
+                                                                    eye_z - world[v, 2])
+                out[v, 0], out[v, 1], out[v, 2] = ambient * base[v, 0], ambient * base[v, 1], ambient * base[v, 2]
+                out[v, 3] = base[v, 3]
+            for j in range(lights.shape[0]):
+                ox, oy, oz, ow = (lights[j, _L_VECTOR], lights[j, _L_VECTOR + 1], lights[j, _L_VECTOR + 2],
+                                  lights[j, _L_VECTOR + 3])
+                cr, cg, cb = lights[j, _L_COLOR], lights[j, _L_COLOR + 1], lights[j, _L_COLOR + 2]
+                for i in range(m):
+                    v = first + i
+                    vectors[6, i], vectors[7, i] = _light_dots(
+                        ox, oy, oz, ow, world[v, 0], world[v, 1], world[v, 2], vectors[0, i], vectors[1, i],
+                        vectors[2, i], vectors[3, i], vectors[4, i], vectors[5, i])
+                for i in range(m):
+                    vectors[7, i] = specular * _power_by(vectors[7, i], shininess, whole)
+                for i in range(m):
+                    v = first + i
+                    n_dot_l, spec = vectors[6, i], vectors[7, i]
+                    out[v, 0] = out[v, 0] + _light_term(cr, diffuse, n_dot_l, base[v, 0], spec)
+                    out[v, 1] = out[v, 1] + _light_term(cg, diffuse, n_dot_l, base[v, 1], spec)
+                    out[v, 2] = out[v, 2] + _light_term(cb, diffuse, n_dot_l, base[v, 2], spec)
 
     @numba.njit(cache=True, error_model="numpy")
     def face_lighting(world, triangles, base, lights, lighting, out):
