@@ -61,6 +61,40 @@ def test_a_draw_in_shares_gives_the_bytes_of_one_share(samples, pattern, monkeyp
         assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), one), f"{n} shares"
 
 
+@pytest.mark.parametrize("samples, pattern", [(1, "gl"), (4, "gl"), (8, "halton")])
+def test_one_draw_with_its_tiles_taken_as_threads_ask_gives_the_bytes_of_one_share(samples, pattern, monkeypatch):
+    """A batch of one draw hands its tiles out from a counter
+    (`threads._next_tile`): the three layers as one draw, blended without
+    a depth test (a tile drawn by two shares would blend twice, one drawn
+    by none would keep the background), textured and lit, in two and three
+    shares against one; every tile of the picture is taken once."""
+    data = draw_scene()
+    layers = data["nodes"]
+    positions = [[x + 0.1 * k, y + 0.05 * k, 0.1 * k] for k in range(3) for x, y, _ in layers[0]["mesh"]["positions"]]
+    data["nodes"] = [dict(layers[0], name="layers", translate=[0, 0, 0],
+                          mesh=dict(layers[0]["mesh"], positions=positions, uvs=layers[0]["mesh"]["uvs"] * 3,
+                                    normals=layers[0]["mesh"]["normals"] * 3,
+                                    indices=[[a + 4 * k, b + 4 * k, c + 4 * k] for k in range(3)
+                                             for a, b, c in layers[0]["mesh"]["indices"]]))]
+    scene = softras.load_scene(data)
+    monkeypatch.setattr(draw, "shares", lambda batch, n_threads: 1)
+    one = softras.render(scene, samples=samples, pattern=pattern)
+    monkeypatch.setattr(draw, "shares", lambda batch, n_threads: n_threads)
+    taken = []
+    real_counter = draw.tile_counter
+
+    def counter(batch, n_shares):
+        taken.append(real_counter(batch, n_shares))
+        return taken[-1]
+
+    monkeypatch.setattr(draw, "tile_counter", counter)
+    for n in (2, 3):
+        monkeypatch.setattr(draw.numba, "get_num_threads", lambda n=n: n)
+        assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), one), f"{n} shares"
+        tiles = ((scene.width + 63) // 64) * ((scene.height + 63) // 64)
+        assert taken[-1].shape == (1,) and taken[-1][0] == tiles + n, "each tile taken once, then one past the end a share"
+
+
 def draw_scene() -> dict:
     quad = {"positions": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], "indices": [[0, 1, 2], [0, 2, 3]],
             "uvs": [[0, 0], [1, 0], [1, 1], [0, 1]], "normals": [[0, 0, 1]] * 4}

@@ -109,7 +109,7 @@ from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, PARALLEL_SETUP, Clipped,
                                    Triangles, _setup, window_buffers)
 from softras.kernels.stamp import sources_stamp
-from softras.kernels.threads import NoAliasCompiler, on_threads
+from softras.kernels.threads import FIXED_SHARES, NoAliasCompiler, _next_tile, on_threads
 from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Sampler, Texels,
                                      _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _lanes_nearest_fixed,
@@ -285,13 +285,18 @@ BATCH_TRIANGLES = 8192
 
 def draw_batch(batch: list) -> None:
     """Draw the set-up triangle draws of ``batch`` (`TileWork`) in order, with
-    one hand-off to the threads for all of them: share r draws tiles r, r + n,
-    ... of each draw in turn.  A tile belongs to one share for the whole
-    batch, so its pixels see the draws in order on one thread: the bytes of
-    drawing them one by one."""
+    one hand-off to the threads for all of them.  A batch of one draw on
+    more than one thread: each share takes the next tile nobody has taken
+    until none is left (a counter, `softras.kernels.threads._next_tile`),
+    so a share that starts late or draws slower takes fewer.  Several
+    draws: share r draws tiles r, r + n, ... of each draw in turn; a tile
+    belongs to one share for the whole batch, so its pixels see the draws
+    in order on one thread.  Either way, the bytes of drawing them one by
+    one on one thread."""
     if not batch:
         return
     n_shares = shares(batch, numba.get_num_threads())
+    next_tile = tile_counter(batch, n_shares)
 
     def share(r):
         # One share's lanes for the whole batch (one pass: one sample count),
@@ -300,9 +305,16 @@ def draw_batch(batch: list) -> None:
         # draws with lanes full of junk).
         lanes = lane_buffers(batch[0].n_samples)
         for work in batch:
-            work.driver(*work.records, lanes, r, n_shares)
+            work.driver(*work.records, lanes, r, n_shares, next_tile)
 
     on_threads(share, n_shares)
+
+
+def tile_counter(batch: list, n_shares: int) -> np.ndarray:
+    """The counter the shares of a batch take its tiles from
+    (`softras.kernels.threads._next_tile`): int64 (1,) zeroed for one draw
+    on more than one thread, else `FIXED_SHARES`."""
+    return np.zeros(1, np.int64) if len(batch) == 1 and n_shares > 1 else FIXED_SHARES
 
 
 def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
@@ -516,17 +528,20 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     # 24k grid ~7 % of its time in NRT_incref and NRT_decref.
     @numba.njit(cache=True, nogil=True, error_model="numpy", _nrt=False, pipeline_class=NoAliasCompiler)
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting, lanes,
-                   r, n_threads):
+                   r, n_threads, next_tile):
         """`softras.pipeline.render.draw_triangles` for one triangle draw after its
         set-up, share r of n_threads (`softras.kernels.threads.on_threads`):
         rasterize, shade and apply every binned triangle (`Bins` of the
-        set-up `Triangles`) in tiles r, r + n_threads, ... (interleaved, so
-        a scene covering only part of the picture still keeps every thread
-        busy) at the `Samples`, into the `Framebuffer` fb with the
-        `DrawState`, the texture's `Sampler` and `Texels` tex, the normal or
-        bump map's (map_sampler, map_tex), and for Phong shading the light
-        table and `Lighting` (`softras.kernels.light`), with this share's
-        own `LaneBuffers` lanes.  The records come as plain tuples
+        set-up `Triangles`) in the tiles the share takes from next_tile,
+        the batch's tile counter (`softras.kernels.threads._next_tile`),
+        or with fixed shares (next_tile `FIXED_SHARES`) in tiles r, r +
+        n_threads, ... (interleaved, so a scene covering only part of the
+        picture still keeps every thread busy) at the `Samples`, into the
+        `Framebuffer` fb with the `DrawState`, the texture's `Sampler` and
+        `Texels` tex, the normal or bump map's (map_sampler, map_tex), and
+        for Phong shading the light table and `Lighting`
+        (`softras.kernels.light`), with this share's own `LaneBuffers`
+        lanes.  The records come as plain tuples
         (`softras.kernels.setup.Clipped`) and are named again here.
         """
         stamp = sources                 # noqa: F841  (a closure variable: the cache key, `softras.kernels.stamp`)
@@ -544,10 +559,11 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         map_sampler_r = Sampler(*map_sampler)
         map_r = Texels(*map_tex)
         lanes_r = LaneBuffers(*lanes)
-        for tile in range(r, n_tiles, n_threads):
+        tile = _next_tile(next_tile, r - n_threads, n_threads)
+        while tile < n_tiles:
             if bins_r.start[tile] == bins_r.start[tile + 1]:
-                continue                # (no triangle there: nor the tile functions' set-up)
-            if textured and n_samples == 1:
+                pass                    # (no triangle there: nor the tile functions' set-up)
+            elif textured and n_samples == 1:
                 _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler_r, tex_r, map_sampler_r,
                                map_r, lights, lighting, lanes_r, n_samples)
             elif textured:
@@ -556,6 +572,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
             else:
                 _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes_r,
                            count, row_runs)
+            tile = _next_tile(next_tile, tile, n_threads)
 
     return draw_tiles
 

@@ -17,6 +17,14 @@ and a batch whose estimated work is small takes one share,
 `softras.kernels.draw.shares`).  A parallel
 loop that calls the shares as functions of their own compiled little
 less (numba optimises a callee again in each caller).
+
+A batch of one draw hands its tiles out as the threads ask for them
+(`_next_tile`: an atomic counter, `_claim`) instead of fixed shares:
+the pool's thread starts its share 40-200 us after the calling thread,
+and fixed shares of the same number of tiles ended up to 0.7 ms apart
+(docs/speed.md, "Forty-fifth round").  A batch of several draws keeps the
+fixed shares: there a tile must see every draw of the batch on one
+thread, in order.
 """
 
 from __future__ import annotations
@@ -25,7 +33,11 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
-from numba.core import compiler
+import numba
+import numpy as np
+from numba import types
+from numba.core import cgutils, compiler
+from numba.extending import intrinsic
 
 
 class NoAliasCompiler(compiler.Compiler):
@@ -75,3 +87,32 @@ def on_threads(share, n_threads: int) -> None:
             future.exception()              # (waits: no share outlives the call)
     for future in futures:
         future.result()
+
+
+# The tile counter of a batch of fixed shares (`_next_tile`): none.
+FIXED_SHARES = np.zeros(0, np.int64)
+
+
+@intrinsic
+def _claim(typingctx, counter):
+    """counter[0] += 1 as one atomic operation (LLVM's ``atomicrmw add``,
+    monotonic: only the count must be shared), returning its value before:
+    every value goes to one caller, whichever thread calls."""
+
+    def codegen(context, builder, signature, args):
+        array_type = signature.args[0]
+        array = context.make_array(array_type)(context, builder, args[0])
+        first = cgutils.get_item_pointer(context, builder, array_type, array,
+                                         [context.get_constant(types.intp, 0)])
+        return builder.atomic_rmw("add", first, context.get_constant(types.int64, 1), "monotonic")
+
+    return types.int64(counter), codegen
+
+
+@numba.njit(cache=True, inline="always")
+def _next_tile(counter, tile, n_threads):
+    """The tile a tile driver's share draws after ``tile`` (r - n_threads
+    before its first): the next one nobody has taken, from the batch's
+    counter (int64 (1,), zeroed for the batch); tile + n_threads for
+    fixed shares (counter `FIXED_SHARES`)."""
+    return _claim(counter) if counter.shape[0] else tile + n_threads
