@@ -3,9 +3,10 @@ threads, not in a numba parallel loop.
 
 A tile driver (`softras.kernels.draw._make_draw_tiles`) is compiled as a
 plain function that releases the GIL (``nogil``) and draws share r of
-n_threads: tiles r, r + n_threads, ...  `on_threads` runs share 0 on the
-calling thread and the others on a pool of threads kept for the process,
-and returns when all are done.  The same work as a numba ``prange`` over
+n_threads: the tiles it takes from a counter, or tiles r, r + n_threads,
+... (below).  `on_threads` runs share 0 on the calling thread and the
+others on a pool of threads kept for the process, and returns when all
+are done.  The same work as a numba ``prange`` over
 the shares, compiled at half the cost: numba's parallel-loop passes (its
 copy propagation over the whole inlined body, the loop body outlined and
 compiled again) were half of a driver's compile (the textured one-sample
