@@ -109,7 +109,7 @@ from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, PARALLEL_SETUP, Clipped,
                                    Triangles, _setup, window_buffers)
 from softras.kernels.stamp import sources_stamp
-from softras.kernels.threads import FIXED_SHARES, NoAliasCompiler, _next_tile, on_threads
+from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _owns, on_threads
 from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Sampler, Texels,
                                      _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _lanes_nearest_fixed,
@@ -285,18 +285,16 @@ BATCH_TRIANGLES = 8192
 
 def draw_batch(batch: list) -> None:
     """Draw the set-up triangle draws of ``batch`` (`TileWork`) in order, with
-    one hand-off to the threads for all of them.  A batch of one draw on
-    more than one thread: each share takes the next tile nobody has taken
-    until none is left (a counter, `softras.kernels.threads._next_tile`),
-    so a share that starts late or draws slower takes fewer.  Several
-    draws: share r draws tiles r, r + n, ... of each draw in turn; a tile
-    belongs to one share for the whole batch, so its pixels see the draws
-    in order on one thread.  Either way, the bytes of drawing them one by
-    one on one thread."""
+    one hand-off to the threads for all of them: each share draws the
+    draws in turn, each in the tiles it owns, taking any tile nobody has
+    taken yet (`tile_owners`, `softras.kernels.threads._owns`), so a
+    share that starts late or draws slower takes fewer.  A tile belongs to
+    one share for the whole batch, so its pixels see the draws in order on
+    one thread: the bytes of drawing them one by one."""
     if not batch:
         return
     n_shares = shares(batch, numba.get_num_threads())
-    next_tile = tile_counter(batch, n_shares)
+    owners = tile_owners(batch, n_shares)
 
     def share(r):
         # One share's lanes for the whole batch (one pass: one sample count),
@@ -305,16 +303,16 @@ def draw_batch(batch: list) -> None:
         # draws with lanes full of junk).
         lanes = lane_buffers(batch[0].n_samples)
         for work in batch:
-            work.driver(*work.records, lanes, r, n_shares, next_tile)
+            work.driver(*work.records, lanes, r, owners)
 
     on_threads(share, n_shares)
 
 
-def tile_counter(batch: list, n_shares: int) -> np.ndarray:
-    """The counter the shares of a batch take its tiles from
-    (`softras.kernels.threads._next_tile`): int64 (1,) zeroed for one draw
-    on more than one thread, else `FIXED_SHARES`."""
-    return np.zeros(1, np.int64) if len(batch) == 1 and n_shares > 1 else FIXED_SHARES
+def tile_owners(batch: list, n_shares: int) -> np.ndarray:
+    """The table the shares of a batch take its tiles in
+    (`softras.kernels.threads._owns`): int64 (tiles,) of -1 (nobody's yet)
+    for more than one share, else `ONE_SHARE`."""
+    return np.full(len(batch[0].records[0][0]) - 1, -1, np.int64) if n_shares > 1 else ONE_SHARE
 
 
 def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
@@ -528,18 +526,16 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     # 24k grid ~7 % of its time in NRT_incref and NRT_decref.
     @numba.njit(cache=True, nogil=True, error_model="numpy", _nrt=False, pipeline_class=NoAliasCompiler)
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting, lanes,
-                   r, n_threads, next_tile):
+                   r, owners):
         """`softras.pipeline.render.draw_triangles` for one triangle draw after its
-        set-up, share r of n_threads (`softras.kernels.threads.on_threads`):
+        set-up, share r of its batch (`softras.kernels.threads.on_threads`):
         rasterize, shade and apply every binned triangle (`Bins` of the
-        set-up `Triangles`) in the tiles the share takes from next_tile,
-        the batch's tile counter (`softras.kernels.threads._next_tile`),
-        or with fixed shares (next_tile `FIXED_SHARES`) in tiles r, r +
-        n_threads, ... (interleaved, so a scene covering only part of the
-        picture still keeps every thread busy) at the `Samples`, into the
-        `Framebuffer` fb with the `DrawState`, the texture's `Sampler` and
-        `Texels` tex, the normal or bump map's (map_sampler, map_tex), and
-        for Phong shading the light table and `Lighting`
+        set-up `Triangles`) in the tiles the share owns or takes (owners:
+        the batch's tile owners, `softras.kernels.threads._owns`) at the
+        `Samples`, into the `Framebuffer` fb with the `DrawState`, the
+        texture's `Sampler` and `Texels` tex, the normal or bump map's
+        (map_sampler, map_tex), and for Phong shading the light table and
+        `Lighting`
         (`softras.kernels.light`), with this share's own `LaneBuffers`
         lanes.  The records come as plain tuples
         (`softras.kernels.setup.Clipped`) and are named again here.
@@ -559,11 +555,10 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         map_sampler_r = Sampler(*map_sampler)
         map_r = Texels(*map_tex)
         lanes_r = LaneBuffers(*lanes)
-        tile = _next_tile(next_tile, r - n_threads, n_threads)
-        while tile < n_tiles:
-            if bins_r.start[tile] == bins_r.start[tile + 1]:
-                pass                    # (no triangle there: nor the tile functions' set-up)
-            elif textured and n_samples == 1:
+        for tile in range(n_tiles):
+            if bins_r.start[tile] == bins_r.start[tile + 1] or not _owns(owners, tile, r):
+                continue                # (no triangle there, nor the tile functions' set-up; or another share's)
+            if textured and n_samples == 1:
                 _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler_r, tex_r, map_sampler_r,
                                map_r, lights, lighting, lanes_r, n_samples)
             elif textured:
@@ -572,7 +567,6 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
             else:
                 _flat_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, lights, lighting, lanes_r,
                            count, row_runs)
-            tile = _next_tile(next_tile, tile, n_threads)
 
     return draw_tiles
 

@@ -3,8 +3,7 @@ threads, not in a numba parallel loop.
 
 A tile driver (`softras.kernels.draw._make_draw_tiles`) is compiled as a
 plain function that releases the GIL (``nogil``) and draws share r of
-n_threads: the tiles it takes from a counter, or tiles r, r + n_threads,
-... (below).  `on_threads` runs share 0 on the calling thread and the
+n_threads: the tiles it takes (below).  `on_threads` runs share 0 on the calling thread and the
 others on a pool of threads kept for the process, and returns when all
 are done.  The same work as a numba ``prange`` over
 the shares, compiled at half the cost: numba's parallel-loop passes (its
@@ -19,13 +18,15 @@ and a batch whose estimated work is small takes one share,
 loop that calls the shares as functions of their own compiled little
 less (numba optimises a callee again in each caller).
 
-A batch of one draw hands its tiles out as the threads ask for them
-(`_next_tile`: an atomic counter, `_claim`) instead of fixed shares:
-the pool's thread starts its share 40-200 us after the calling thread,
-and fixed shares of the same number of tiles ended up to 0.7 ms apart
-(docs/speed.md, "Forty-fifth round").  A batch of several draws keeps the
-fixed shares: there a tile must see every draw of the batch on one
-thread, in order.
+The tiles go to the shares as they ask for them (`_owns`: a table of
+owners, one atomic compare-and-swap a tile and draw, `_claim`), not in
+fixed shares: the pool's thread starts its share 40-200 us after the
+calling thread, and fixed shares of the same number of tiles ended up to
+0.7 ms apart (docs/speed.md, "Forty-fifth round").  A tile's first taker
+keeps it for the batch, so it sees every draw of the batch on one thread,
+in order: a share that reaches a tile with triangles of a draw either owns
+it or takes it, since had another share seen those triangles first it
+would have taken the tile then.
 """
 
 from __future__ import annotations
@@ -90,30 +91,36 @@ def on_threads(share, n_threads: int) -> None:
         future.result()
 
 
-# The tile counter of a batch of fixed shares (`_next_tile`): none.
-FIXED_SHARES = np.zeros(0, np.int64)
+# The tile owners of a batch drawn by one share (`_owns`): none, every tile is its.
+ONE_SHARE = np.zeros(0, np.int64)
 
 
 @intrinsic
-def _claim(typingctx, counter):
-    """counter[0] += 1 as one atomic operation (LLVM's ``atomicrmw add``,
-    monotonic: only the count must be shared), returning its value before:
-    every value goes to one caller, whichever thread calls."""
+def _claim(typingctx, owners, tile, r):
+    """owners[tile] = r if it is -1, as one atomic operation (LLVM's
+    ``cmpxchg``, monotonic: only the entry itself must be shared),
+    returning the entry's value before: one caller takes a tile, whichever
+    thread calls first."""
 
     def codegen(context, builder, signature, args):
-        array_type = signature.args[0]
+        array_type, tile_type, r_type = signature.args
         array = context.make_array(array_type)(context, builder, args[0])
-        first = cgutils.get_item_pointer(context, builder, array_type, array,
-                                         [context.get_constant(types.intp, 0)])
-        return builder.atomic_rmw("add", first, context.get_constant(types.int64, 1), "monotonic")
+        entry = cgutils.get_item_pointer(context, builder, array_type, array,
+                                         [context.cast(builder, args[1], tile_type, types.intp)])
+        exchanged = builder.cmpxchg(entry, context.get_constant(types.int64, -1),
+                                    context.cast(builder, args[2], r_type, types.int64), "monotonic", "monotonic")
+        return builder.extract_value(exchanged, 0)
 
-    return types.int64(counter), codegen
+    return types.int64(owners, tile, r), codegen
 
 
 @numba.njit(cache=True, inline="always")
-def _next_tile(counter, tile, n_threads):
-    """The tile a tile driver's share draws after ``tile`` (r - n_threads
-    before its first): the next one nobody has taken, from the batch's
-    counter (int64 (1,), zeroed for the batch); tile + n_threads for
-    fixed shares (counter `FIXED_SHARES`)."""
-    return _claim(counter) if counter.shape[0] else tile + n_threads
+def _owns(owners, tile, r):
+    """Whether share r draws ``tile``: the batch's owners (int64 (tiles,),
+    -1 for a tile nobody has taken yet) give it to the first share that
+    asks, and to that share for every later draw of the batch;
+    `ONE_SHARE`: every tile is share r's."""
+    if owners.shape[0] == 0:
+        return True
+    owner = _claim(owners, tile, r)
+    return owner == -1 or owner == r
