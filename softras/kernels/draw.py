@@ -444,10 +444,14 @@ BOX_PIXEL_NS = 0.75
 # What handing a batch's shares to the threads costs, ns: the hand-off and
 # wait (~50 us here, `softras.kernels.threads`), and per draw of the batch
 # a trade of the GIL between the threads (each share calls the driver from
-# Python, one draw after another: ~15 us a draw on parts_64x128_512, whose
-# batches of 16 draws took 0.38 ms on one thread and 0.30 or 0.55 ms on two).
+# Python, one draw after another).  With fixed shares that was ~15 us a
+# draw on parts_64x128_512, whose batches of 16 draws took 0.38 ms on one
+# thread and 0.30 or 0.55 ms on two; with the tiles taken as the shares
+# reach them (`softras.kernels.threads._owns`) its renders on two took
+# 0.88-0.91x their time on one, ~3 us a draw (docs/speed.md, "Forty-fifth
+# round").
 HAND_OFF_NS = 50_000
-HAND_OFF_NS_PER_DRAW = 15_000
+HAND_OFF_NS_PER_DRAW = 3_000
 
 
 def draw_work(binned: int, box_pixels: int, heavy: bool, n_samples: int) -> float:
