@@ -61,7 +61,9 @@ from softras.pipeline.render import vertex_colors
 LineTable = namedtuple("LineTable", ["drawn", "qx", "qy", "region", "window", "inv_w", "ends"])
 
 # Rows of pixels per band: thread r covers bands r, r + n_threads, ...
-BAND = 64
+# (32 drew lines_8k_512 2-5 % faster than 64 in four alternated runs,
+# 16 slower: docs/speed.md, "Forty-fifth round".)
+BAND = 32
 
 
 def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
