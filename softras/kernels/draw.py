@@ -539,9 +539,8 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         `Samples`, into the `Framebuffer` fb with the `DrawState`, the
         texture's `Sampler` and `Texels` tex, the normal or bump map's
         (map_sampler, map_tex), and for Phong shading the light table and
-        `Lighting`
-        (`softras.kernels.light`), with this share's own `LaneBuffers`
-        lanes.  The records come as plain tuples
+        `Lighting` (`softras.kernels.light`), with this share's own
+        `LaneBuffers` lanes.  The records come as plain tuples
         (`softras.kernels.setup.Clipped`) and are named again here.
         """
         stamp = sources                 # noqa: F841  (a closure variable: the cache key, `softras.kernels.stamp`)

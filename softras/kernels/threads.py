@@ -2,10 +2,10 @@
 threads, not in a numba parallel loop.
 
 A tile driver (`softras.kernels.draw._make_draw_tiles`) is compiled as a
-plain function that releases the GIL (``nogil``) and draws share r of
-n_threads: the tiles it takes (below).  `on_threads` runs share 0 on the calling thread and the
-others on a pool of threads kept for the process, and returns when all
-are done.  The same work as a numba ``prange`` over
+plain function that releases the GIL (``nogil``) and draws share r of a
+batch: the tiles the share takes (below).  `on_threads` runs share 0 on
+the calling thread and the others on a pool of threads kept for the
+process, and returns when all are done.  The same work as a numba ``prange`` over
 the shares, compiled at half the cost: numba's parallel-loop passes (its
 copy propagation over the whole inlined body, the loop body outlined and
 compiled again) were half of a driver's compile (the textured one-sample
@@ -91,7 +91,7 @@ def on_threads(share, n_threads: int) -> None:
         future.result()
 
 
-# The tile owners of a batch drawn by one share (`_owns`): none, every tile is its.
+# The tile owners of a batch drawn by one share (`_owns`): none, every tile is that share's.
 ONE_SHARE = np.zeros(0, np.int64)
 
 

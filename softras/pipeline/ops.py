@@ -297,11 +297,10 @@ def _resolve_bytes(stored, out):
     inv_255 = np.float32(1.0 / 255.0)
     inv_n = np.float32(1.0 / n_samples)
     for y in numba.prange(height):
-        row = stored[y].reshape(width, n_samples * 4)          # pixel x: sample s's channel c at 4 s + c
         top = out[height - 1 - y].reshape(width * 4)
         total = np.empty(width * 4, np.float32)
         if n_samples == 4:
-            flat = stored[y].reshape(width * 16)
+            flat = stored[y].reshape(width * 16)                # pixel x: sample s's channel c at 16 x + 4 s + c
             products = np.empty(width * 16, np.float32)
             for i in range(width * 16):
                 products[i] = np.float32(flat[i]) * inv_255
@@ -310,6 +309,7 @@ def _resolve_bytes(stored, out):
                     total[4 * x + c] = (((products[16 * x + c] + products[16 * x + 4 + c])
                                          + products[16 * x + 8 + c]) + products[16 * x + 12 + c])
         else:
+            row = stored[y].reshape(width, n_samples * 4)      # pixel x: sample s's channel c at 4 s + c
             for x in range(width):
                 for c in range(4):
                     total[4 * x + c] = np.float32(row[x, c]) * inv_255
