@@ -442,7 +442,7 @@ MUTATIONS: tuple[Mutation, ...] = (
          "keep = -np.int64(runs[2 * s] <= px - x0)"),
        (FAST,)),
     _m("fast_share_lost", "rasterize", "fast path",
-       "the tile driver's last share never runs on a thread of its own (its tiles stay clear)",
+       "the tile driver's last share never runs on a thread of its own (the others take its tiles)",
        E("softras/kernels/threads.py", "for r in range(1, n_threads)]", "for r in range(1, n_threads - 1)]"),
        (FAST, "tests/test_threads.py")),
     _m("fast_tiles_taken_twice", "rasterize", "fast path",
