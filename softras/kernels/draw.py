@@ -279,7 +279,10 @@ TileWork = namedtuple("TileWork", ["driver", "records", "n_samples", "work", "tr
 # (`set_up_triangles`' slot, ~500 bytes a triangle) until then.  The
 # batches are for the small draws, whose hand-off to the threads costs as
 # much as drawing them; a large draw gains nothing from sharing one.
-MAX_BATCH = 16
+# (32 since the forty-fifth round: with the tiles taken as the shares reach
+# them, parts_64x128_512 drew 0.97x and textured_parts 0.93-0.98x their
+# time in batches of 16; 64 was no faster, docs/speed.md.)
+MAX_BATCH = 32
 BATCH_TRIANGLES = 8192
 
 
