@@ -20,7 +20,7 @@ from softras.pipeline import numba_fixes
 
 # In a new process on an empty numba cache: Gouraud's lighting loop compiled
 # anew (a parallel loop, so copy propagation runs, with Blinn-Phong inlined:
-# `_lit_point` and libm's pow), called on lit_spheres' first lit draw;
+# `_light_points` and libm's pow), called on lit_spheres' first lit draw;
 # prints its machine code (addresses in symbol names masked), its result,
 # how often each fix was used and how much of numba's work was done: the
 # callees' front ends run (bytecode read) and the statements SSA

@@ -315,7 +315,8 @@ def tile_owners(batch: list, n_shares: int) -> np.ndarray:
     """The table the shares of a batch take its tiles in
     (`softras.kernels.threads._owns`): int64 (tiles,) of -1 (nobody's yet)
     for more than one share, else `ONE_SHARE`."""
-    return np.full(len(batch[0].records[0][0]) - 1, -1, np.int64) if n_shares > 1 else ONE_SHARE
+    bin_start = batch[0].records[0][0]          # (tiles + 1 entries; every draw of a pass has the same tiles)
+    return np.full(len(bin_start) - 1, -1, np.int64) if n_shares > 1 else ONE_SHARE
 
 
 def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:

@@ -502,8 +502,9 @@ def _make_phong(sources: str):
         """`softras.pipeline.render.phong_attributes` and
         `softras.pipeline.fragment.blinn_phong` of triangle t's k fragments of
         one band: the tile kernels' `softras.kernels.light._phong_colors`
-        (`_lit_point`'s operations per fragment, in passes over the fragments
-        that compile to SIMD), the fragments as its lanes: their perspective
+        (`softras.kernels.light._light_points`' operations per fragment, in
+        passes over the fragments that compile to SIMD), the fragments as its
+        lanes: their perspective
         weights in lf's _LF_W rows, a map's tangent-space normals in the
         _LF_MAP rows; the lit straight colour into the _LF_LIT rows.  A
         function of its own: inlined into `_draw`'s parallel loop, numba's

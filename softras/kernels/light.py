@@ -295,25 +295,46 @@ _phong_words = _make_phong_words(sources_stamp(libm, ops_stage))
 # on a 36k-vertex mesh, 60 % of the render).
 
 
+# Points a chunk of `_light_points` lights together (`_vertex_lighting`'s
+# parallel unit).
+POINT_CHUNK = 256
+
+
 @numba.njit(error_model="numpy", inline="always")
-def _lit_point(r, g, b, px, py, pz, nx, ny, nz, lights, lighting):
-    """`softras.pipeline.fragment.blinn_phong` at one world point p with unit
-    normal n and straight colour (r, g, b): the lit (r, g, b)."""
+def _light_points(base, world, first, m, lights, lighting, out, vectors):
+    """`softras.pipeline.fragment.blinn_phong` at the m world points first
+    .. first + m - 1 (m <= POINT_CHUNK) of world (P, 6): positions, then
+    normals (not unit: normalised here, `_unit`), with straight colours
+    base (P, 4), into out (P, 4), alpha kept.  In passes over the points,
+    as `_phong_colors` takes its lanes, so that each compiles to SIMD: the
+    unit normals and view vectors, then per light the dot products, the
+    power and the terms; vectors (8, POINT_CHUNK) float64, scratch."""
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
-    vx, vy, vz = _unit(eye_x - px, eye_y - py, eye_z - pz)
-    out_r, out_g, out_b = ambient * r, ambient * g, ambient * b
+    whole = _whole_exponent(shininess)
+    for i in range(m):
+        v = first + i
+        vectors[0, i], vectors[1, i], vectors[2, i] = _unit(world[v, 3], world[v, 4], world[v, 5])
+        vectors[3, i], vectors[4, i], vectors[5, i] = _unit(eye_x - world[v, 0], eye_y - world[v, 1],
+                                                            eye_z - world[v, 2])
+        out[v, 0], out[v, 1], out[v, 2] = ambient * base[v, 0], ambient * base[v, 1], ambient * base[v, 2]
+        out[v, 3] = base[v, 3]
     for j in range(lights.shape[0]):
-        n_dot_l, n_dot_h = _light_dots(lights[j, _L_VECTOR], lights[j, _L_VECTOR + 1], lights[j, _L_VECTOR + 2],
-                                       lights[j, _L_VECTOR + 3], px, py, pz, nx, ny, nz, vx, vy, vz)
-        spec = specular * _power_by(n_dot_h, shininess, _whole_exponent(shininess))
-        out_r = out_r + _light_term(lights[j, _L_COLOR], diffuse, n_dot_l, r, spec)
-        out_g = out_g + _light_term(lights[j, _L_COLOR + 1], diffuse, n_dot_l, g, spec)
-        out_b = out_b + _light_term(lights[j, _L_COLOR + 2], diffuse, n_dot_l, b, spec)
-    return out_r, out_g, out_b
-
-
-# Vertices a chunk of `_vertex_lighting` (its parallel unit) lights together.
-VERTEX_CHUNK = 256
+        ox, oy, oz, ow = (lights[j, _L_VECTOR], lights[j, _L_VECTOR + 1], lights[j, _L_VECTOR + 2],
+                          lights[j, _L_VECTOR + 3])
+        cr, cg, cb = lights[j, _L_COLOR], lights[j, _L_COLOR + 1], lights[j, _L_COLOR + 2]
+        for i in range(m):
+            v = first + i
+            vectors[6, i], vectors[7, i] = _light_dots(
+                ox, oy, oz, ow, world[v, 0], world[v, 1], world[v, 2], vectors[0, i], vectors[1, i],
+                vectors[2, i], vectors[3, i], vectors[4, i], vectors[5, i])
+        for i in range(m):
+            vectors[7, i] = specular * _power_by(vectors[7, i], shininess, whole)
+        for i in range(m):
+            v = first + i
+            n_dot_l, spec = vectors[6, i], vectors[7, i]
+            out[v, 0] = out[v, 0] + _light_term(cr, diffuse, n_dot_l, base[v, 0], spec)
+            out[v, 1] = out[v, 1] + _light_term(cg, diffuse, n_dot_l, base[v, 1], spec)
+            out[v, 2] = out[v, 2] + _light_term(cb, diffuse, n_dot_l, base[v, 2], spec)
 
 
 def _make_lighting_loops(sources: str):
@@ -327,44 +348,16 @@ def _make_lighting_loops(sources: str):
         """Gouraud's lit vertex colours into out (V, 4): base (V, 4) straight,
         world (V, 6) the world positions and world normals (not unit:
         normalised here as `softras.pipeline.vertex.world_normals` does,
-        `_world_attributes`), alpha kept.  `_lit_point`'s operations in
-        its order, over chunks of VERTEX_CHUNK vertices in parallel, each
-        chunk in passes as `_phong_colors` takes its lanes (the unit
-        vectors; per light the dot products, the power, the terms), so
-        that each pass compiles to SIMD: a scan's 36k vertices in 0.64 ms
-        against 0.92 a vertex at a time (two threads)."""
+        `_world_attributes`), alpha kept (`_light_points`), chunks of
+        POINT_CHUNK vertices in parallel: a scan's 36k vertices in 0.64 ms
+        against 0.92 a vertex at a time, each vertex's lighting one call
+        (two threads)."""
         stamp = sources                 # noqa: F841  (the cache key)
-        eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
-        whole = _whole_exponent(shininess)
         n = base.shape[0]
-        for chunk in numba.prange((n + VERTEX_CHUNK - 1) // VERTEX_CHUNK):
-            first = chunk * VERTEX_CHUNK
-            m = min(n - first, VERTEX_CHUNK)
-            vectors = np.empty((8, VERTEX_CHUNK))      # unit normal, unit view vector, N.L, spec
-            for i in range(m):
-                v = first + i
-                vectors[0, i], vectors[1, i], vectors[2, i] = _unit(world[v, 3], world[v, 4], world[v, 5])
-                vectors[3, i], vectors[4, i], vectors[5, i] = _unit(eye_x - world[v, 0], eye_y - world[v, 1],
-                                                                    eye_z - world[v, 2])
-                out[v, 0], out[v, 1], out[v, 2] = ambient * base[v, 0], ambient * base[v, 1], ambient * base[v, 2]
-                out[v, 3] = base[v, 3]
-            for j in range(lights.shape[0]):
-                ox, oy, oz, ow = (lights[j, _L_VECTOR], lights[j, _L_VECTOR + 1], lights[j, _L_VECTOR + 2],
-                                  lights[j, _L_VECTOR + 3])
-                cr, cg, cb = lights[j, _L_COLOR], lights[j, _L_COLOR + 1], lights[j, _L_COLOR + 2]
-                for i in range(m):
-                    v = first + i
-                    vectors[6, i], vectors[7, i] = _light_dots(
-                        ox, oy, oz, ow, world[v, 0], world[v, 1], world[v, 2], vectors[0, i], vectors[1, i],
-                        vectors[2, i], vectors[3, i], vectors[4, i], vectors[5, i])
-                for i in range(m):
-                    vectors[7, i] = specular * _power_by(vectors[7, i], shininess, whole)
-                for i in range(m):
-                    v = first + i
-                    n_dot_l, spec = vectors[6, i], vectors[7, i]
-                    out[v, 0] = out[v, 0] + _light_term(cr, diffuse, n_dot_l, base[v, 0], spec)
-                    out[v, 1] = out[v, 1] + _light_term(cg, diffuse, n_dot_l, base[v, 1], spec)
-                    out[v, 2] = out[v, 2] + _light_term(cb, diffuse, n_dot_l, base[v, 2], spec)
+        for chunk in numba.prange((n + POINT_CHUNK - 1) // POINT_CHUNK):
+            first = chunk * POINT_CHUNK
+            _light_points(base, world, first, min(n - first, POINT_CHUNK), lights, lighting, out,
+                          np.empty((8, POINT_CHUNK)))
 
     @numba.njit(cache=True, error_model="numpy")
     def face_lighting(world, triangles, base, lights, lighting, out):
@@ -373,19 +366,24 @@ def _make_lighting_loops(sources: str):
         (`softras.pipeline.fragment.face_normals`: ``normalize(cross(p1 - p0, p2
         - p0))``, numpy.cross's operations), the centroid (``(p0 + p1 + p2) /
         3``, numpy's mean) and the provoking (last) vertex's straight colour of
-        base (V, 4), alpha kept."""
+        base (V, 4), alpha kept: each face's centroid, cross product and
+        colour as a point of `_light_points`, which normalises the normal."""
         stamp = sources                 # noqa: F841  (the cache key)
-        for k in range(triangles.shape[0]):
+        k_faces = triangles.shape[0]
+        points = np.empty((k_faces, 6))         # centroid, then the cross product (not unit)
+        colors = np.empty((k_faces, 4))
+        for k in range(k_faces):
             i0, i1, i2 = triangles[k, 0], triangles[k, 1], triangles[k, 2]
             ax, ay, az = world[i1, 0] - world[i0, 0], world[i1, 1] - world[i0, 1], world[i1, 2] - world[i0, 2]
             bx, by, bz = world[i2, 0] - world[i0, 0], world[i2, 1] - world[i0, 1], world[i2, 2] - world[i0, 2]
-            nx, ny, nz = _unit(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
-            cx = (world[i0, 0] + world[i1, 0] + world[i2, 0]) / 3.0
-            cy = (world[i0, 1] + world[i1, 1] + world[i2, 1]) / 3.0
-            cz = (world[i0, 2] + world[i1, 2] + world[i2, 2]) / 3.0
-            out[k, 0], out[k, 1], out[k, 2] = _lit_point(base[i2, 0], base[i2, 1], base[i2, 2], cx, cy, cz,
-                                                         nx, ny, nz, lights, lighting)
-            out[k, 3] = base[i2, 3]
+            points[k, 3], points[k, 4], points[k, 5] = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+            for c in range(3):
+                points[k, c] = (world[i0, c] + world[i1, c] + world[i2, c]) / 3.0
+            for c in range(4):
+                colors[k, c] = base[i2, c]
+        vectors = np.empty((8, POINT_CHUNK))
+        for first in range(0, k_faces, POINT_CHUNK):
+            _light_points(colors, points, first, min(k_faces - first, POINT_CHUNK), lights, lighting, out, vectors)
 
     return vertex_lighting, face_lighting
 
