@@ -7,6 +7,7 @@ may hold anything when a draw begins."""
 from __future__ import annotations
 
 import functools
+import os
 import threading
 import time
 
@@ -15,7 +16,7 @@ import pytest
 
 import softras
 from conftest import SCENES
-from softras.kernels import draw, threads
+from softras.kernels import draw, pool, threads
 
 
 def test_every_share_runs_once_and_share_zero_on_the_calling_thread():
@@ -25,11 +26,11 @@ def test_every_share_runs_once_and_share_zero_on_the_calling_thread():
         with lock:
             seen.append((r, threading.get_ident()))
 
-    threads.on_threads(share, 3)
+    pool.on_threads(share, 3)
     assert sorted(r for r, _ in seen) == [0, 1, 2]
     assert dict(seen)[0] == threading.get_ident()
     seen.clear()
-    threads.on_threads(share, 1)
+    pool.on_threads(share, 1)
     assert seen == [(0, threading.get_ident())]
 
 
@@ -43,8 +44,29 @@ def test_an_error_reaches_the_caller_after_every_share_has_ended():
         ended.append(r)
 
     with pytest.raises(ValueError, match="share 1 failed"):
-        threads.on_threads(share, 3)
+        pool.on_threads(share, 3)
     assert sorted(ended) == [0, 2]
+
+
+def test_the_pool_threads_run_off_the_calling_threads_cpu():
+    """A share handed over must not be queued behind the caller's own
+    (softras.kernels.pool): the pool's thread may run on every CPU this
+    process may use but the one its caller was on (on all of them where
+    there is one).  Tried a few times: the caller may move to another CPU
+    between the hand-off and its share, and a new pool's thread is pinned
+    from its second hand-off on."""
+    allowed = os.sched_getaffinity(0)
+    for attempt in range(6):
+        seen = {}
+
+        def share(r):
+            seen[r] = pool._sched_getcpu() if r == 0 else os.sched_getaffinity(0)
+
+        pool.on_threads(share, 2)
+        expected = (allowed - {seen[0]}) or allowed
+        if seen[1] == expected:
+            break
+    assert seen[1] == expected
 
 
 @pytest.mark.parametrize("samples, pattern", [(1, "gl"), (4, "gl"), (8, "halton")])

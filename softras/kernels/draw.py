@@ -109,7 +109,8 @@ from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, PARALLEL_SETUP, Clipped,
                                    Triangles, _setup, window_buffers)
 from softras.kernels.stamp import sources_stamp
-from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _owns, on_threads
+from softras.kernels.pool import on_threads
+from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _owns
 from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Sampler, Texels,
                                      _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _lanes_nearest_fixed,
@@ -512,7 +513,7 @@ def driver_samples(samples: int, is_textured: bool) -> int:
 
 def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     """`softras.pipeline.rasterize.rasterize` and the per-fragment stages, tile by tile:
-    the tile driver (one share of it, `softras.kernels.threads.on_threads`)
+    the tile driver (one share of it, `softras.kernels.pool.on_threads`)
     compiled for one sample count (`DRIVER_SAMPLES`:
     1, 4 (untextured), or ANY_SAMPLES for the count of the draw's sample
     table) and textured or not, as constants (closure variables are compile-time constants to
@@ -536,7 +537,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
     def draw_tiles(bins, tris, samples, fb, state, sampler, tex, map_sampler, map_tex, lights, lighting, lanes,
                    r, owners):
         """`softras.pipeline.render.draw_triangles` for one triangle draw after its
-        set-up, share r of its batch (`softras.kernels.threads.on_threads`):
+        set-up, share r of its batch (`softras.kernels.pool.on_threads`):
         rasterize, shade and apply every binned triangle (`Bins` of the
         set-up `Triangles`) in the tiles the share owns or takes (owners:
         the batch's tile owners, `softras.kernels.threads._owns`) at the

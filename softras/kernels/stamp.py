@@ -26,10 +26,11 @@ from pathlib import Path
 from softras.pipeline.cache_key import sources_key
 
 
-# Modules of this folder that no other kernel inlines: prepare.py holds no
-# compiled code, and the exact kernels are compiled for themselves (an edit
-# of them need not compile the tile drivers again: five minutes on two cores).
-NOT_INLINED = ("prepare.py", "exact.py", "exact_lines.py")
+# Modules of this folder that no other kernel inlines: prepare.py and pool.py
+# hold no compiled code, and the exact kernels are compiled for themselves
+# (an edit of them need not compile the tile drivers again: five minutes on
+# two cores).
+NOT_INLINED = ("prepare.py", "pool.py", "exact.py", "exact_lines.py")
 
 
 def sources_stamp(*stage_modules) -> str:
