@@ -909,7 +909,8 @@ def test_scratch_nbytes_counts_the_reused_buffers():
 # ----------------------------------------------------------------------------- size thresholds
 #
 # Each size at which the fast path changes what it does, just below, at and
-# just above: PARALLEL_SETUP (the set-up in parallel chunks), TILE (the
+# just above: PARALLEL_SETUP (the set-up in a share a thread),
+# PARALLEL_LIGHTING (Gouraud's vertex lighting likewise), TILE (the
 # binning), BLOCK (the coverage blocks), LANES (the lanes shaded at once),
 # _Scratch.MAX_BYTES (buffers kept between renders) and the texture tables'
 # cache (cleared at 16 entries).  Byte equality with the stages every time.
@@ -964,9 +965,9 @@ def clip_list(scene, k):
 @pytest.mark.parametrize("textured", [False, True])
 @pytest.mark.parametrize("offset", [-1, 0, 1])
 def test_parallel_setup_threshold_is_bit_identical(offset, textured):
-    """PARALLEL_SETUP - 1, PARALLEL_SETUP and + 1 clipped triangles (serial and
-    parallel `_setup`), fans from the clipper among them, colours and uvs at the
-    corners, with 1 and 2 threads (4 chunks per thread)."""
+    """PARALLEL_SETUP - 1, PARALLEL_SETUP and + 1 clipped triangles (`_setup`
+    in one call, and in a share a thread), fans from the clipper among them,
+    colours and uvs at the corners, with 1 and 2 threads."""
     import numba
     assert k_setup.PARALLEL_SETUP == 4096
     target = k_setup.PARALLEL_SETUP + offset
@@ -983,6 +984,44 @@ def test_parallel_setup_threshold_is_bit_identical(offset, textured):
                 buffer.fill(0)
             assert_same(general, render_scene(scene, precision="gl"),
                         f"{target} triangles, textured {textured}, {threads} threads")
+    finally:
+        numba.set_num_threads(before)
+
+
+@pytest.mark.parametrize("offset", [-1, 0, 1])
+def test_parallel_lighting_threshold_is_bit_identical(offset):
+    """PARALLEL_LIGHTING - 1, PARALLEL_LIGHTING and + 1 vertices of a
+    Gouraud-lit mesh (its lighting in one call, and in a share a thread,
+    `softras.kernels.light.base_colors`) under a point and a directional
+    light, with 1 and 2 threads: a strip of small triangles along a random
+    walk, so that every vertex is in sight and a vertex the lighting
+    skipped shows."""
+    import numba
+    assert k_light.PARALLEL_LIGHTING == 4096
+    n = k_light.PARALLEL_LIGHTING + offset
+    rng = np.random.default_rng(400 + offset)
+    positions = np.cumsum(rng.uniform(-0.05, 0.05, size=(n, 3)) * [1, 1, 0.2], axis=0)
+    positions -= positions.mean(axis=0)
+    indices = np.stack([np.arange(n - 2), np.arange(1, n - 1), np.arange(2, n)], axis=1)
+    scene = softras.load_scene({
+        "softras_scene": 1, "width": 96, "height": 72, "background": [0, 0, 0, 1],
+        "camera": {"projection": "perspective", "fov_y": 60, "near": 0.5, "far": 10, "eye": [0, 0, 3],
+                   "target": [0, 0, 0]},
+        "lights": [{"type": "point", "position": [2, 2, 3], "color": [1, 0.9, 0.8]},
+                   {"type": "directional", "direction": [-1, -0.3, -0.5], "color": [0.2, 0.3, 0.5]}],
+        "nodes": [{"name": "lit", "mesh": {"positions": positions.tolist(), "indices": indices.tolist(),
+                                           "normals": rng.normal(size=(n, 3)).tolist()},
+                   "material": {"shading": "gouraud", "color": [0.8, 0.6, 0.3, 1], "ambient": 0.1,
+                                "diffuse": 0.7, "specular": 0.5, "shininess": 24}}]})
+    assert len(scene.draws[0].mesh.positions) == n
+    general = render_scene(scene, precision="gl", fast_path=False)
+    before = numba.get_num_threads()
+    try:
+        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+            numba.set_num_threads(threads)
+            for buffer in fastpath._scratch.buffers.values():     # (no lit colours left from the last render)
+                buffer.fill(0)
+            assert_same(general, render_scene(scene, precision="gl"), f"{n} vertices, {threads} threads")
     finally:
         numba.set_num_threads(before)
 

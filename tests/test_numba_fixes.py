@@ -18,15 +18,18 @@ from numba.core import analysis, inline_closurecall, ir_utils, ssa
 
 from softras.pipeline import numba_fixes
 
-# In a new process on an empty numba cache: Gouraud's lighting loop compiled
-# anew (a parallel loop, so copy propagation runs, with Blinn-Phong inlined:
-# `_light_points` and libm's pow), called on lit_spheres' first lit draw;
+# In a new process on an empty numba cache: Gouraud's lighting as a parallel
+# loop over chunks compiled anew (so copy propagation runs, with Blinn-Phong
+# inlined: `_light_points` and libm's pow; softras's own loop runs its
+# chunks on `softras.kernels.pool`'s threads since the forty-sixth round,
+# without numba's parallel passes), called on lit_spheres' first lit draw;
 # prints its machine code (addresses in symbol names masked), its result,
 # how often each fix was used and how much of numba's work was done: the
 # callees' front ends run (bytecode read) and the statements SSA
 # reconstruction's rewrites went through.
 PROGRAM = r"""
 import json, re, sys
+import numba
 import numpy as np
 from softras.pipeline import numba_fixes
 from numba.core import analysis, ssa, untyped_passes
@@ -72,7 +75,13 @@ draw = next(d for d in scene.draws if d.material.shading != "unlit")
 table, lighting = light.scene_lighting(scene, draw.material)
 world = light.world_attributes(draw, np.empty((len(draw.mesh.positions), 6)))
 base = np.ones((len(world), 4))
-vertex_lighting, _ = light._make_lighting_loops("tests/test_numba_fixes.py")
+@numba.njit(error_model="numpy", parallel=True)
+def vertex_lighting(base, world, lights, lighting, out):
+    n = base.shape[0]
+    for chunk in numba.prange((n + light.POINT_CHUNK - 1) // light.POINT_CHUNK):
+        first = chunk * light.POINT_CHUNK
+        light._light_points(base, world, first, min(n - first, light.POINT_CHUNK), lights, lighting, out,
+                            np.empty((8, light.POINT_CHUNK)))
 lit = np.empty_like(base)
 vertex_lighting(base, world, table, tuple(lighting), lit)
 (compiled,) = vertex_lighting.overloads.values()

@@ -27,6 +27,7 @@ import numpy as np
 from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix, _triple
 from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW,
                                    _LF_W, _LI_WORD)
+from softras.kernels.pool import on_threads
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import fragment, libm, vertex
 from softras.pipeline import ops as ops_stage
@@ -296,8 +297,12 @@ _phong_words = _make_phong_words(sources_stamp(libm, ops_stage))
 
 
 # Points a chunk of `_light_points` lights together (`_vertex_lighting`'s
-# parallel unit).
+# unit), and the vertices from which Gouraud's lighting takes a share a
+# thread: ~35 ns a vertex on one thread here, so from ~3,000 vertices half
+# the work outweighs the ~50 us of handing a share over
+# (`softras.kernels.pool`).
 POINT_CHUNK = 256
+PARALLEL_LIGHTING = 4096
 
 
 @numba.njit(error_model="numpy", inline="always")
@@ -343,21 +348,23 @@ def _make_lighting_loops(sources: str):
     variable (`softras.kernels.stamp`): they inline libm's pow, and numba's
     cache would check this file alone.  sources : in the cache key only."""
 
-    @numba.njit(cache=True, error_model="numpy", parallel=True)
-    def vertex_lighting(base, world, lights, lighting, out):
+    @numba.njit(cache=True, error_model="numpy", nogil=True)
+    def vertex_lighting(base, world, lights, lighting, out, r, n_shares):
         """Gouraud's lit vertex colours into out (V, 4): base (V, 4) straight,
         world (V, 6) the world positions and world normals (not unit:
         normalised here as `softras.pipeline.vertex.world_normals` does,
-        `_world_attributes`), alpha kept (`_light_points`), chunks of
-        POINT_CHUNK vertices in parallel: a scan's 36k vertices in 0.64 ms
-        against 0.92 a vertex at a time, each vertex's lighting one call
-        (two threads)."""
+        `_world_attributes`), alpha kept (`_light_points`), in chunks of
+        POINT_CHUNK vertices: share r of n_shares (a run of the chunks, for
+        `softras.kernels.pool.on_threads`).  A scan's 36k vertices in 0.64
+        ms on two threads against 0.92 a vertex at a time, each vertex's
+        lighting one call."""
         stamp = sources                 # noqa: F841  (the cache key)
         n = base.shape[0]
-        for chunk in numba.prange((n + POINT_CHUNK - 1) // POINT_CHUNK):
+        chunks = (n + POINT_CHUNK - 1) // POINT_CHUNK
+        vectors = np.empty((8, POINT_CHUNK))
+        for chunk in range(r * chunks // n_shares, (r + 1) * chunks // n_shares):
             first = chunk * POINT_CHUNK
-            _light_points(base, world, first, min(n - first, POINT_CHUNK), lights, lighting, out,
-                          np.empty((8, POINT_CHUNK)))
+            _light_points(base, world, first, min(n - first, POINT_CHUNK), lights, lighting, out, vectors)
 
     @numba.njit(cache=True, error_model="numpy")
     def face_lighting(world, triangles, base, lights, lighting, out):
@@ -393,7 +400,8 @@ _vertex_lighting, _face_lighting = _make_lighting_loops(sources_stamp(libm))
 
 def base_colors(scene, draw, take=_fresh, view: Viewing | None = None) -> np.ndarray:
     """`softras.pipeline.render.vertex_base_colors` (V, 4) float64, Gouraud's
-    lighting by `_vertex_lighting`: the same bits.  Its arrays come from
+    lighting by `_vertex_lighting` (a share a thread from PARALLEL_LIGHTING
+    vertices): the same bits.  Its arrays come from
     ``take(name, shape, dtype)``, its eye and normal rows from ``view`` (as
     in `phong_inputs`)."""
     material, mesh = draw.material, draw.mesh
@@ -407,8 +415,10 @@ def base_colors(scene, draw, take=_fresh, view: Viewing | None = None) -> np.nda
         return base
     out = take("lit_base_colors", base.shape, np.float64)
     table, lighting = scene_lighting(scene, material, view)
-    _vertex_lighting(base, world_attributes(draw, take("world_attributes", (len(mesh.positions), 6), np.float64),
-                                            view), table, tuple(lighting), out)
+    world = world_attributes(draw, take("world_attributes", (len(mesh.positions), 6), np.float64), view)
+    lighting = tuple(lighting)
+    n_shares = numba.get_num_threads() if len(base) >= PARALLEL_LIGHTING else 1
+    on_threads(lambda r: _vertex_lighting(base, world, table, lighting, out, r, n_shares), n_shares)
     return out
 
 

@@ -21,6 +21,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
+from softras.kernels.pool import on_threads
 from softras.pipeline import setup as setup_stage
 
 # Per set-up triangle, float64 row of `tri_f`: window x (3), y (3), z (3),
@@ -32,7 +33,7 @@ _I_A, _I_B, _I_X0, _I_Y0, _I_INC, _I_SWAP, _I_VIS, _NI = 0, 3, 6, 9, 12, 15, 16,
 CULL_CODES = {"none": 0, "back": 1, "front": 2}
 SUBPIXEL_BITS = setup_stage.SUBPIXEL_BITS      # gl precision snaps to 1/256 pixel
 SUBPIXEL_ONE = setup_stage.SUBPIXEL_ONE
-PARALLEL_SETUP = 4096      # triangles from which `_setup` runs in parallel chunks
+PARALLEL_SETUP = 4096      # triangles from which `_setup` runs in shares on threads
 
 # A draw's clipped triangle list, as `softras.pipeline.clip.triangle_list_gl`
 # returns it (source, slot, fan_clip, fan_weights), with the mesh's vertex
@@ -56,8 +57,9 @@ Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit"])
 
 def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, scratch):
     """`softras.pipeline.setup.setup_triangles` (gl precision) of the clipped
-    triangles (`_setup_range`): in one call, or in parallel chunks from
-    PARALLEL_SETUP triangles (read at call time).  clip_pos : the mesh's
+    triangles (`_setup_range`): in one call, or from PARALLEL_SETUP
+    triangles (read at call time) in a share of them a thread
+    (`softras.kernels.pool.on_threads`).  clip_pos : the mesh's
     vertices in clip space (V, 4); clipped : the `Clipped` list;
     vertex_values : (vertex colours (V, 4), vertex uvs (V, 2) or (0, 2)
     when untextured, vertex world positions and normals (V, 6) or (0, 6)
@@ -68,10 +70,12 @@ def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris,
     vertex_f, vertex_i = window_buffers(scratch, len(clip_pos))
     _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
     args = ((vertex_f, vertex_i), tuple(clipped), width, height, cull, offsets, vertex_values, tuple(tris))
-    if len(clipped.source) < PARALLEL_SETUP:
-        _setup_range(0, len(clipped.source), *args)
-    else:
-        _setup_chunks(*args, 4 * numba.get_num_threads())     # (asked only here: 3.6 us a call)
+    n = len(clipped.source)
+    if n < PARALLEL_SETUP:
+        _setup_range(0, n, *args)
+        return
+    n_shares = numba.get_num_threads()          # (asked only here: 3.6 us a call)
+    on_threads(lambda r: _setup_range(r * n // n_shares, (r + 1) * n // n_shares, *args), n_shares)
 
 
 def window_buffers(scratch, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
@@ -80,17 +84,6 @@ def window_buffers(scratch, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     vertex_f (V, 4) float64 and vertex_i (V, 2) int64."""
     return (scratch.take("vertex_f", (n_vertices, 4), np.float64),
             scratch.take("vertex_i", (n_vertices, 2), np.int64))
-
-
-@numba.njit(cache=True, parallel=True, error_model="numpy")
-def _setup_chunks(window, clipped, width, height, cull, offsets, vertex_values, tris, n_chunks):
-    """`softras.pipeline.setup.setup_triangles` (gl precision) as
-    `_setup_range` over n_chunks parallel chunks of the triangles (one
-    compiled loop body serves the serial and the parallel set-up)."""
-    n = clipped[1].shape[0]                 # (clipped: `Clipped` as a plain tuple; [1] the source)
-    for chunk in numba.prange(n_chunks):
-        _setup_range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks, window, clipped, width, height, cull,
-                     offsets, vertex_values, tris)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -132,7 +125,7 @@ def _window_corner(x, y, z, w, fused, width, height):
     return wx, wy, wz, np.float64(oow), rx, ry
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _setup_range(start, stop, window, clipped, width, height, cull, offsets, vertex_values, tris):
     """`softras.pipeline.setup.setup_triangles` (gl precision) and the depth plane of
     `softras.pipeline.interpolate.depth_at_samples`, for the clipped triangles start
