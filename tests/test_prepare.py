@@ -275,7 +275,8 @@ def test_the_gl_preparation_reaches_every_kernel_with_the_types_scenes_give(tmp_
          {"precision": "gl", "framebuffer": "rgba32f"}, {"precision": "gl", "samples": 4, "framebuffer": "rgba32f"}])
     for key in fastpath._DRAW_TILES:
         assert before[f"softras.kernels.draw._DRAW_TILES[{key}]"] == 1, f"the preparation missed the driver {key}"
-    assert before["softras.kernels.lines._DRAW_LINES"] == 1, "the preparation did not compile the line kernel"
+    for kernel in ("_SET_UP_LINES", "_COVER_LINES"):
+        assert before[f"softras.kernels.lines.{kernel}"] == 1, "the preparation did not compile the line kernel"
     assert before["softras.pipeline.clip.triangle_list_gl"] == 1
     assert before["softras.kernels.front_end._front_end"] == 1, "the preparation missed the front end in one call"
     assert before["softras.pipeline.ops._resolve_bytes"] == 1, "the preparation did not compile the MSAA resolve"
@@ -428,7 +429,8 @@ def test_the_cache_keys_cover_the_stage_kernels_the_kernels_inline(monkeypatch):
     def key(kernel):
         return [cell.cell_contents for cell in kernel.py_func.__closure__]
 
-    line_key = key(k_lines._DRAW_LINES)
+    line_key = key(k_lines._SET_UP_LINES)
+    assert key(k_lines._COVER_LINES) == line_key
     exact_key = key(k_exact._DRAW)
     assert fastpath._SOURCES == stamp.sources_stamp(ops, texture, libm, texture_beyond)
     assert line_key == [stamp.sources_stamp(lines, ops, rasterize, clip_stage)]

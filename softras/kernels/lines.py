@@ -23,10 +23,11 @@ fragment list:
    the compiled path's byte framebuffer (`softras.kernels.ops`), or its
    float colour into an rgba32f buffer.
 
-Two parallel passes: the set-up by lines, then the coverage by bands of
-rows, where each thread walks all the lines in order over its own rows, so
-every pixel sees the lines in the stages' fragment order and blending and
-equal depths resolve as there (docs/speed.md, "Lines").
+Two passes, each in a share a thread (`softras.kernels.pool.on_threads`):
+the set-up by lines, then the coverage by bands of rows, where each
+thread walks all the lines in order over its own rows, so every pixel
+sees the lines in the stages' fragment order and blending and equal
+depths resolve as there (docs/speed.md, "Lines").
 """
 
 from __future__ import annotations
@@ -38,9 +39,11 @@ import numpy as np
 
 from softras.kernels.interpolate import RGBA, _color_word
 from softras.kernels.ops import _depth_k, _depth_pass_k, _write_floats, _write_word, holds_floats
+from softras.kernels.pool import on_threads
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
+from softras.kernels.threads import NoAliasCompiler, _unowned
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
@@ -82,57 +85,73 @@ def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
                       _scratch.take("qy", (n, 4), np.float64), _scratch.take("region", (n, 4), np.int64),
                       _scratch.take("window", (n, 2, 3), np.float64), _scratch.take("inv_w", (n, 2), np.float64),
                       _scratch.take("ends", (n, 2, 4), np.float64))
-    _DRAW_LINES(c, finite, read_only(mesh.indices, np.int64), planes,
-                read_only(vertex_colors(mesh), np.float64), read_only(draw.material.color, np.float64),
-                offsets, np.ascontiguousarray(positions, np.float64), rectangular,
-                lines_stage.attribute_shift("gl", rectangular), fb.color32, fb.color_f, holds_floats(fb),
-                fb.depth, depth_func,
-                bool(draw.depth_write) and depth_func != 0, ops.BLEND_MODES[draw.blend], *table,
-                numba.get_num_threads())
+    n_threads = numba.get_num_threads()
+    indices, values = read_only(mesh.indices, np.int64), read_only(vertex_colors(mesh), np.float64)
+    dist = _plane_distances(c, planes)
+    on_threads(lambda r: _SET_UP_LINES(r, n_threads, c, dist, finite, indices, values, rectangular,
+                                       scene.width, scene.height, *table), n_threads)
+    material = read_only(draw.material.color, np.float64)
+    positions = np.ascontiguousarray(positions, np.float64)
+    shift = lines_stage.attribute_shift("gl", rectangular)
+    write_z = bool(draw.depth_write) and depth_func != 0
+    blend = ops.BLEND_MODES[draw.blend]
+    on_threads(lambda r: _COVER_LINES(r, n_threads, material, offsets, positions, rectangular, shift, fb.color32,
+                                      fb.color_f, holds_floats(fb), fb.depth, depth_func, write_z, blend, *table),
+               n_threads)
 
 
 _scratch = _Scratch()
 
 
-def _make_draw_lines(sources: str):
-    """The line kernel, compiled with ``sources`` (`softras.kernels.stamp`:
-    the kernels' and the line stage's sources, whose functions it inlines)
-    in its cache key."""
+def _make_line_passes(sources: str):
+    """The line kernel's two passes, each one share of n_threads for
+    `softras.kernels.pool.on_threads`: the set-up by lines
+    (`_set_up_lines`: share r sets up lines r, r + n_threads, ...), then
+    the coverage, shading and writes by bands of BAND rows (`_cover_lines`:
+    bands r, r + n_threads, ...; a pixel is one share's, and it sees the
+    lines in order).  Arguments as those two take them, the `LineTable`'s
+    arrays one by one.  Compiled with ``sources`` (`softras.kernels.stamp`:
+    the kernels' and the line stage's sources, whose functions they reach)
+    in their cache key.
 
-    @numba.njit(cache=True, parallel=True, error_model="numpy")
-    def draw_lines_kernel(c, finite, indices, planes, values, material, offsets, positions, rectangular, shift,
-                          color32, color_f, rgba32f, depth, depth_func, write_z, blend, drawn, qx, qy, region, window,
-                          inv_w, ends, n_threads):
-        """Every line of a draw: clipped and set up in parallel (`_set_up_lines`,
-        thread r lines r, r + n_threads, ...), then covered, shaded and
-        written in parallel by bands of BAND rows (`_cover_lines`, thread
-        r bands r, r + n_threads, ...: a pixel is one thread's, and it sees
-        the lines in order).  Arguments as `_set_up_lines` and
-        `_cover_lines`, the `LineTable`'s arrays one by one (drawn ...
-        ends)."""
+    Compiled as numba compiles a parallel loop's body (they were one until
+    the forty-sixth round): ``noalias`` on their arrays
+    (`softras.kernels.threads.NoAliasCompiler`), and the arrays handed on
+    unowned (`softras.kernels.threads._unowned`), so that the views the
+    helpers take of each line's rows are not reference-counted (1.28 ->
+    0.72 ms for lines_8k_512's set-up on one thread).  The helpers are
+    called, not inlined, as in `softras.kernels.exact_lines`: inlined into
+    a parallel loop the kernel took 31 s to compile cold, called 17 s,
+    drawing as fast."""
+
+    @numba.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+    def set_up_pass(r, n_threads, c, dist, finite, indices, values, rectangular, width, height, drawn, qx, qy,
+                    region, window, inv_w, ends):
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
-        dist = _plane_distances(c, planes)
-        # (The two helpers are called, not inlined, as in `softras.kernels.exact_lines`:
-        # inlined into the parallel loops the kernel took 31 s to compile cold,
-        # called 17 s, drawing as fast; and with an int64 thread number: numba types
-        # a prange index int64, then uint64 in the loop's body, and would compile
-        # each helper twice.)
-        for r in numba.prange(n_threads):
-            _set_up_lines(np.int64(r), n_threads, c, dist, finite, indices, values, rectangular, depth.shape[1],
-                          depth.shape[0], drawn, qx, qy, region, window, inv_w, ends)
-        for r in numba.prange(n_threads):
-            _cover_lines(np.int64(r), n_threads, material, offsets, positions, rectangular, shift, color32, color_f,
-                         rgba32f, depth, depth_func, write_z, blend,
-                         LineTable(drawn, qx, qy, region, window, inv_w, ends))
+        _set_up_lines(r, n_threads, _unowned(c), _unowned(dist), _unowned(finite), _unowned(indices),
+                      _unowned(values), rectangular, width, height, _unowned(drawn), _unowned(qx), _unowned(qy),
+                      _unowned(region), _unowned(window), _unowned(inv_w), _unowned(ends))
 
-    return draw_lines_kernel
+    @numba.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+    def cover_pass(r, n_threads, material, offsets, positions, rectangular, shift, color32, color_f, rgba32f, depth,
+                   depth_func, write_z, blend, drawn, qx, qy, region, window, inv_w, ends):
+        stamp = sources                 # noqa: F841  (a closure variable: the cache key)
+        _cover_lines(r, n_threads, _unowned(material), _unowned(offsets), _unowned(positions), rectangular, shift,
+                     _unowned(color32), _unowned(color_f), rgba32f, _unowned(depth), depth_func, write_z, blend,
+                     LineTable(_unowned(drawn), _unowned(qx), _unowned(qy), _unowned(region), _unowned(window),
+                               _unowned(inv_w), _unowned(ends)))
+
+    return set_up_pass, cover_pass
 
 
 @numba.njit(error_model="numpy")
 def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, width, height, drawn, qx, qy,
                   region, window, inv_w, ends):
-    """`softras.pipeline.lines.rasterized_lines` up to the coverage, for the
-    input lines r, r + n_threads, ... into their `LineTable` rows: clipped
+    """`softras.pipeline.lines.rasterized_lines` up to the coverage, for
+    share r of n_threads of the input lines (a run of them: interleaved,
+    the shares wrote the same cache lines of the table, and the pass took
+    1.2-1.3 ms on two threads in a render against 0.6-0.8 ms in runs)
+    into their `LineTable` rows: clipped
     (`_clip_line`), the end points' window coordinates and 1/w
     (`_window_corner`), set up (`_setup_line`) and binned
     (`_binned_region`); drawn False for a line dropped on the way.
@@ -142,12 +161,14 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
     float64 values are finite, indices (M, 2), values (N, 4) straight
     vertex colours; rectangular: MSAA lines; the framebuffer's size; the
     `LineTable`'s arrays one by one (numba's parallel loop dropped this
-    loop as dead when they came as a record built in it)."""
+    loop as dead when they came as a record built in it, when the passes
+    were one)."""
     end_clip = np.empty((1, 2, 4))
     weights = np.empty((1, 2, 2))
     generated = np.empty((1, 2), np.bool_)
     pixel_offset = 0.0 if rectangular else 0.5
-    for line in range(r, indices.shape[0], n_threads):
+    n_lines = indices.shape[0]
+    for line in range(r * n_lines // n_threads, (r + 1) * n_lines // n_threads):
         drawn[line] = False
         i0, i1 = indices[line, 0], indices[line, 1]
         if not (finite[i0] and finite[i1]
@@ -254,4 +275,4 @@ def _in_bands(y0, y1, r, n_threads):
     return False
 
 
-_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize, clip_stage))
+_SET_UP_LINES, _COVER_LINES = _make_line_passes(sources_stamp(lines_stage, ops, rasterize, clip_stage))

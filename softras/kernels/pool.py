@@ -1,23 +1,22 @@
 """The threads the compiled path's work runs on in shares (the tile
-drivers', a large draw's set-up, Gouraud's lighting of a large mesh):
-`on_threads` runs share 0 on the calling thread and the others on a pool
-of Python threads kept for the process, and returns when all are done.
-No compiled code: an edit here compiles no kernel again
-(`softras.kernels.stamp.NOT_INLINED`).
+drivers', a large draw's set-up, Gouraud's lighting of a large mesh, the
+gl line kernel's two passes): `on_threads` runs share 0 on the calling
+thread and the others on a pool of Python threads kept for the process,
+and returns when all are done.  No compiled code: an edit here compiles
+no kernel again (`softras.kernels.stamp.NOT_INLINED`).
 
 Why Python threads and not a numba parallel loop over the shares: the
 drivers compile at half the cost (`softras.kernels.threads`; the set-up
-and lighting loops 4 s less of a cold start), and the threads can be
-kept apart (below), which numba's OpenMP threads cannot without pinning
-the caller too.  (The gl line kernel keeps its parallel loops: its
-passes called from here drew 1.5x slower, docs/speed.md, "Forty-sixth
-round".)  The price: a share handed to a pool thread and waited for
-costs ~50 us here, where numba's own threads start a loop in ~2 us when
-they are awake (so the shares of a batch of draws are handed over once,
-`softras.kernels.draw.draw_batch`, a batch whose estimated work is small
-takes one share, `softras.kernels.draw.shares`, and the set-up and the
-lighting take shares only from `softras.kernels.setup.PARALLEL_SETUP`
-triangles and `softras.kernels.light.PARALLEL_LIGHTING` vertices).
+and lighting loops 4 s less of a cold start, the line kernel 7.9 -> 6.0
+s), and the threads can be kept apart (below), which numba's OpenMP
+threads cannot without pinning the caller too.  The price: a share
+handed to a pool thread and waited for costs ~50 us here, where numba's
+own threads start a loop in ~2 us when they are awake (so the shares of
+a batch of draws are handed over once, `softras.kernels.draw.draw_batch`,
+a batch whose estimated work is small takes one share,
+`softras.kernels.draw.shares`, and the set-up and the lighting take
+shares only from `softras.kernels.setup.PARALLEL_SETUP` triangles and
+`softras.kernels.light.PARALLEL_LIGHTING` vertices).
 
 The pool's threads run on the CPUs other than the one the calling thread
 is on when it hands shares over (`_keep_apart`).  On this 2-vCPU VM a

@@ -186,8 +186,8 @@ def _cached(variant) -> bool:
 
 def main_kernels(variant) -> tuple:
     """The numba dispatchers a variant is prepared for: its tile driver
-    (`softras.kernels.draw._DRAW_TILES`), the gl line kernel, or exact's
-    draw and line kernels."""
+    (`softras.kernels.draw._DRAW_TILES`), the gl line kernel's two passes,
+    or exact's draw and line kernels."""
     if variant == EXACT:
         from softras.kernels import exact, exact_lines
 
@@ -195,7 +195,7 @@ def main_kernels(variant) -> tuple:
     if variant == LINES:
         from softras.kernels import lines
 
-        return (lines._DRAW_LINES,)
+        return lines._SET_UP_LINES, lines._COVER_LINES
     from softras.kernels import draw
 
     return (draw._DRAW_TILES[variant],)

@@ -1,6 +1,7 @@
 """The tile drivers' shares: a compiled kernel's shares run on Python
 threads (`softras.kernels.pool.on_threads`), not in a numba parallel loop,
-and take the tiles of a batch as they reach them.
+and take the tiles of a batch as they reach them; and what such a kernel
+borrows from numba's parallel loops.
 
 A tile driver (`softras.kernels.draw._make_draw_tiles`) is compiled as a
 plain function that releases the GIL (``nogil``) and draws share r of a
@@ -22,6 +23,10 @@ keeps it for the batch, so it sees every draw of the batch on one thread,
 in order: a share that reaches a tile with triangles of a draw either owns
 it or takes it, since had another share seen those triangles first it
 would have taken the tile then.
+
+`_unowned` gives a kernel called from Python what a parallel loop's body
+had: arrays without an owner, whose views cost no reference counting
+(the gl line kernel's passes, `softras.kernels.lines`).
 """
 
 from __future__ import annotations
@@ -44,6 +49,32 @@ class NoAliasCompiler(compiler.Compiler):
     def define_pipelines(self):
         self.state.flags.noalias = True
         return super().define_pipelines()
+
+
+@intrinsic
+def _unowned(typingctx, array):
+    """``array`` as a parallel loop's body sees its arrays: the same data,
+    shape and strides, with no owner (meminfo and parent NULL), so that
+    numba's reference counting of it and of the views taken from it
+    (``a[i]``) is a test of NULL, not an atomic add.  For a kernel called
+    from Python that hands arrays or their views to functions it does not
+    inline: the line kernel's set-up drew 1.28 ms with the arrays as
+    passed and 0.72 ms unowned, as fast as in numba's parallel loop
+    (docs/speed.md, "Forty-sixth round").  The caller keeps the arrays
+    alive (the Python caller of the kernel holds them)."""
+    if not isinstance(array, types.Array):
+        return None
+
+    def codegen(context, builder, signature, args):
+        given = context.make_array(signature.args[0])(context, builder, args[0])
+        unowned = context.make_array(signature.return_type)(context, builder)
+        for field in ("nitems", "itemsize", "data", "shape", "strides"):
+            setattr(unowned, field, getattr(given, field))
+        unowned.meminfo = cgutils.get_null_value(unowned.meminfo.type)
+        unowned.parent = cgutils.get_null_value(unowned.parent.type)
+        return unowned._getvalue()
+
+    return array(array), codegen
 
 
 # The tile owners of a batch drawn by one share (`_owns`): none, every tile is that share's.
