@@ -136,6 +136,29 @@ def test_translucent_layers_give_the_stages_floats(alphas, shading, samples):
     assert_same_floats(scene, f"{shading} layers with alphas {alphas}, {samples} samples", samples=samples)
 
 
+@pytest.mark.parametrize("samples", [1, 4])
+@pytest.mark.parametrize("shading", ["unlit", "flat"])
+def test_depth_tested_unblended_layers_with_alpha_give_the_stages_floats(shading, samples):
+    """The same tilted layers, intersecting, drawn with a "less" depth test,
+    depth writes and no blending, their alphas 0.2-0.9 (stored
+    premultiplied, as they are: alpha is not multiplied by itself): unlit,
+    at one sample the rows of `softras.kernels.rgba32f._row_floats_less`,
+    at 4 the lanes; flat-shaded, the lanes.  (The scenes of the other tests
+    draw opaque depth-tested triangles with alpha 1, where a wrong
+    premultiplication shows nothing.)"""
+    data = blended_scene(96, layers=4, cols=3)
+    if shading == "flat":
+        data["lights"] = [{"type": "directional", "direction": [0.3, -0.5, -1], "color": [1, 0.9, 0.8]}]
+    for k, node in enumerate(data["nodes"]):
+        a = 0.2 + 0.7 * k / 3
+        node["mesh"]["corner_colors"] = [[1, 0, 0, a], [0, 1, 0.25, 1 - a], [0, 0, 1, a], [1, 0.5, 1, 0.5]]
+        node["material"] = {"shading": shading}
+        node["rotate"] = [-20 + 25 * k, 1, 0.3, 0]       # (crossing one another: the depth test decides)
+        node["blend"], node["depth_test"] = "none", "less"
+    scene = softras.load_scene(data)
+    assert_same_floats(scene, f"{shading} depth-tested layers, {samples} samples", samples=samples)
+
+
 @pytest.mark.parametrize("name", texture_beyond.FILTERS)
 def test_softras_filters_give_the_stages_floats(name):
     """softras's own filters (ripmap, EWA, level 0, ...) on stretched uvs."""

@@ -36,7 +36,8 @@ naming the readable function it must equal:
    derivatives and level of detail), RGBA8 rounding, then the depth test,
    blend and write (`softras.kernels.ops`).  At 1 or 4 samples an unlit,
    untextured draw without alpha test into RGBA8 (the commonest), and at
-   1 sample translucent layers into rgba32f (`_float_rows`), skip the
+   1 sample translucent layers and opaque depth-tested draws into rgba32f
+   (`_float_rows`), skip the
    lanes: each row's run of covered pixels is depth-tested, shaded, blended
    and stored where it lies, in one loop LLVM vectorises (`_flat_row`).
    No fragment list exists.
@@ -104,7 +105,7 @@ from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_
                                  _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
-from softras.kernels.rgba32f import _float_fragments, _row_floats_over
+from softras.kernels.rgba32f import _float_fragments, _row_floats_less, _row_floats_over
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, PARALLEL_SETUP, Clipped,
                                    Triangles, _setup, window_buffers)
@@ -606,7 +607,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     lanes and shaded (`_flat_block`) from LANES of them on (a row adds at
     most TILE, so the lanes never exceed 2 * LANES) and after the
     triangle's last block or row.  At 1 or 4 samples an unlit draw without
-    alpha test into RGBA8 (at 1 sample translucent layers into rgba32f too,
+    alpha test into RGBA8 (at 1 sample the commonest draws into rgba32f too,
     `_float_rows`) shades each row's run where it lies instead
     (`_flat_row`): the lanes' steps in one loop, without writing the pixels
     down first (docs/speed.md, "Thirty-second round").  The per-pixel arithmetic is
@@ -630,7 +631,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
     # At 1 or 4 samples an unlit draw without alpha test into RGBA8 shades
     # each row's run where it lies (`_flat_row`), without lanes; so does
-    # one sample's commonest draw into rgba32f (`_float_rows`).
+    # one sample's commonest draws into rgba32f (`_float_rows`).
     by_rows = not (state.lit or state.alpha_test or state.rgba32f) or (n_samples == 1 and _float_rows(state))
     words = color32.reshape(-1)             # (the colour words: a pixel's samples one after another)
     floats = color_f.reshape(-1)            # (an rgba32f buffer's floats, a pixel's four after another)
@@ -931,15 +932,18 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
 @numba.njit(error_model="numpy", inline="always")
 def _float_rows(state):
     """Whether an untextured draw into an rgba32f buffer, at one sample, is
-    shaded by rows (`_flat_row`, `softras.kernels.rgba32f._row_floats_over`):
-    unlit, without alpha test, depth test or depth writes, blended "over",
-    colours interpolated (translucent layers).  Every other such draw
-    takes the lanes (`_flat_block`): a copy of the row loop for "less"
-    with depth writes, as RGBA8 has, raised the peak memory of the
-    one-sample driver's compile from 0.69 to 1.08 GB (docs/speed.md,
-    "Thirty-sixth round")."""
+    shaded by rows (`_flat_row`): unlit, without alpha test, colours
+    interpolated, and either without depth test or depth writes, blended
+    "over" (translucent layers, `softras.kernels.rgba32f._row_floats_over`),
+    or "less" with depth writes, not blended (opaque surfaces,
+    `softras.kernels.rgba32f._row_floats_less`).  Every other such draw
+    takes the lanes (`_flat_block`).  (The copy for "less" raised the peak
+    memory of the one-sample driver's compile from 0.69 to 1.08 GB in the
+    thirty-sixth round and was left out; in the forty-sixth, after the
+    compile's fixes, the peak went 0.58 -> 0.56 GB with it, docs/speed.md.)"""
     return (state.rgba32f and not (state.lit or state.alpha_test or state.flat)
-            and not _uses_depth(state.depth_func, state.write_z) and state.blend == 1)
+            and ((not _uses_depth(state.depth_func, state.write_z) and state.blend == 1)
+                 or (state.depth_func == LESS and state.write_z and state.blend == 0)))
 
 
 @numba.njit(error_model="numpy", inline="always")
@@ -959,8 +963,8 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
     draws get a copy of the pixel loop with their depth test, blend and
     shading constants (so that LLVM vectorises it): "less" with depth writes
     and no blend, interpolated or flat (one sample), and no depth with
-    "over" (rgba32f: that one alone).  tile_x0, tile_x1 : the columns of the
-    tile (`_padded_run`)."""
+    "over" (rgba32f: that one and "less" interpolated).  tile_x0, tile_x1 :
+    the columns of the tile (`_padded_run`)."""
     # The runs as one flat tuple (lo, hi, ...) a sample (numba's array
     # analysis fails on a tuple of tuples indexed in a loop).  (The two
     # branches give tuples of different types: only the drivers of 1 and 4
@@ -990,7 +994,9 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
                      positions[2, 0], positions[2, 1], positions[3, 0], positions[3, 1])
     start, end = x0 + lo, x0 + hi
     depth_func, write_z, blend, flat = state.depth_func, state.write_z, state.blend, state.flat
-    if n_samples == 1 and state.rgba32f:     # (`_float_rows`: no depth, "over", interpolated)
+    if n_samples == 1 and state.rgba32f and write_z:     # (`_float_rows`: "less", depth writes, interpolated)
+        _row_floats_less(start, end, py, corners, corner_colors, plane, positions, depths, floats, width)
+    elif n_samples == 1 and state.rgba32f:               # (`_float_rows`: no depth, "over", interpolated)
         _row_floats_over(start, end, py, corners, corner_colors, floats, width)
     elif depth_func == LESS and write_z and blend == 0 and not flat:
         _row_pixels(start, end, start, end, False, py, runs, x0, corners, corner_colors, plane, positions,

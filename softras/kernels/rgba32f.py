@@ -14,11 +14,12 @@ the tile kernel's as for RGBA8: `softras.kernels.draw` calls
 draw's `softras.kernels.draw.DrawState` says rgba32f.  It is a function of
 its own, not inlined: one compiled copy (Phong's lighting with it) serves
 every tile driver, and the RGBA8 draws pay one branch per block.  At one
-sample an unlit, interpolated draw without alpha test or depth, blended
-"over", takes `_row_floats_over` instead: the same steps pixel by pixel
-along a row's run of covered pixels, as RGBA8's
-`softras.kernels.draw._row_pixels_1` (inlined into the driver of one
-sample).
+sample an unlit, interpolated draw without alpha test takes a row loop
+instead when it is blended "over" without depth (`_row_floats_over`) or
+depth-tested "less" with depth writes and not blended
+(`_row_floats_less`): the same steps pixel by pixel along a row's run of
+covered pixels, as RGBA8's `softras.kernels.draw._row_pixels_1` (inlined
+into the driver of one sample).
 
 `resolve` makes the picture from the float samples, gl precision's
 float32 and exact precision's float64 alike (`softras.kernels.exact.resolve`
@@ -36,7 +37,7 @@ import numpy as np
 from softras.kernels.interpolate import _mix, _weights_at
 from softras.kernels.lanes import _LF_LIT, _LF_TEX, _LF_W, _LI_PASS, _LI_PX, _LI_PY, _whole_vectors
 from softras.kernels.light import _phong_colors
-from softras.kernels.ops import _resolve_box, _write_floats
+from softras.kernels.ops import LESS, _depth_k, _depth_pass_k, _resolve_box, _write_floats
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import libm, ops
 from softras.pipeline import render as stages
@@ -109,6 +110,41 @@ def _write_lanes_floats(n, lf, li, color_f, n_samples, blend):
 
 
 _float_fragments = _make_float_fragments(sources_stamp(ops, libm))
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _row_floats_less(start, end, py, corners, corner_colors, plane, positions, depths, floats, width):
+    """`_float_fragments` of an unlit, untextured, interpolated triangle's
+    fragments at pixels start..end of row py, one sample a pixel, every
+    pixel covered, depth-tested "less" with depth writes, not blended (an
+    opaque draw): per pixel the depth from the plane and its test and write
+    (as `softras.kernels.draw._row_pixels_1`: plane = (x0, y0, z0, dz/dx,
+    dz/dy) of the set-up triangle, positions (x, y) the sample's within the
+    pixel), the straight colour under the weights `_weights_at` at the
+    pixel centre, premultiplied, stored rounded to float32 where the depth
+    test passed (`_write_floats` with no blend: the fragment's value).
+    The same operations in the same order as the lanes; a select, not a
+    branch, where the test fails.  depths, floats : the depth buffer and
+    the colour buffer (H, W, 1, 4) seen as one row each; width : the
+    picture's."""
+    fx0, fy0, z0, dzdx, dzdy = plane
+    row = py * width
+    zy = (py + positions[1]) - fy0
+    cy = py + 0.5
+    for px in range(start, end + 1):
+        i = np.uint64(row + px)
+        k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * zy)
+        stored = depths[i]
+        passed = _depth_pass_k(LESS, k, stored)
+        depths[i] = k if passed else stored
+        w = _weights_at(corners, px + 0.5, cy)
+        r, g, b, a = _mix(w, corner_colors.r), _mix(w, corner_colors.g), _mix(w, corner_colors.b), \
+            _mix(w, corner_colors.a)
+        j = i * np.uint64(4)
+        floats[j] = _blend(0, r * a, 0.0, a) if passed else floats[j]
+        floats[j + np.uint64(1)] = _blend(0, g * a, 0.0, a) if passed else floats[j + np.uint64(1)]
+        floats[j + np.uint64(2)] = _blend(0, b * a, 0.0, a) if passed else floats[j + np.uint64(2)]
+        floats[j + np.uint64(3)] = _blend(0, a, 0.0, a) if passed else floats[j + np.uint64(3)]
 
 
 @numba.njit(error_model="numpy", inline="always")
