@@ -332,7 +332,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
     the process).  An unlit or flat draw of fewer than PARALLEL_SETUP
     mesh triangles takes the four in one compiled call
     (`softras.kernels.front_end`), the others one call each, the set-up in
-    parallel chunks from PARALLEL_SETUP clipped triangles (`_setup`).
+    a share a thread from PARALLEL_SETUP clipped triangles (`_setup`).
     None when no triangle is visible."""
     scene, samples, view = this_pass.scene, this_pass.samples, this_pass.view
     mesh, material = draw.mesh, draw.material
