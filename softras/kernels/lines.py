@@ -106,7 +106,7 @@ _scratch = _Scratch()
 def _make_line_passes(sources: str):
     """The line kernel's two passes, each one share of n_threads for
     `softras.kernels.pool.on_threads`: the set-up by lines
-    (`_set_up_lines`: share r sets up lines r, r + n_threads, ...), then
+    (`_set_up_lines`: share r sets up the r-th run of them), then
     the coverage, shading and writes by bands of BAND rows (`_cover_lines`:
     bands r, r + n_threads, ...; a pixel is one share's, and it sees the
     lines in order).  Arguments as those two take them, the `LineTable`'s
