@@ -105,7 +105,7 @@ from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_
                                  _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
-from softras.kernels.rgba32f import _float_fragments, _row_floats_less, _row_floats_over
+from softras.kernels.rgba32f import _float_fragments, _row_floats
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI, CULL_CODES, PARALLEL_SETUP, Clipped,
                                    Triangles, _setup, window_buffers)
@@ -994,10 +994,8 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
                      positions[2, 0], positions[2, 1], positions[3, 0], positions[3, 1])
     start, end = x0 + lo, x0 + hi
     depth_func, write_z, blend, flat = state.depth_func, state.write_z, state.blend, state.flat
-    if n_samples == 1 and state.rgba32f and write_z:     # (`_float_rows`: "less", depth writes, interpolated)
-        _row_floats_less(start, end, py, corners, corner_colors, plane, positions, depths, floats, width)
-    elif n_samples == 1 and state.rgba32f:               # (`_float_rows`: no depth, "over", interpolated)
-        _row_floats_over(start, end, py, corners, corner_colors, floats, width)
+    if n_samples == 1 and state.rgba32f:     # (`_float_rows`: interpolated, "less" with depth writes or "over")
+        _row_floats(start, end, py, corners, corner_colors, plane, positions, depths, floats, width, write_z)
     elif depth_func == LESS and write_z and blend == 0 and not flat:
         _row_pixels(start, end, start, end, False, py, runs, x0, corners, corner_colors, plane, positions,
                     depths, words, width, True, LESS, True, 0, False, n_samples)

@@ -112,6 +112,23 @@ def _write_lanes_floats(n, lf, li, color_f, n_samples, blend):
 _float_fragments = _make_float_fragments(sources_stamp(ops, libm))
 
 
+@numba.njit(error_model="numpy", _nrt=False)
+def _row_floats(start, end, py, corners, corner_colors, plane, positions, depths, floats, width, write_z):
+    """The rows of an rgba32f draw at one sample (`softras.kernels.draw._float_rows`):
+    `_row_floats_less` for an opaque depth-tested draw (``write_z``), else
+    `_row_floats_over`.  Called, not inlined, and without reference
+    counting (``_nrt=False``: its arrays are the driver's, and it
+    allocates nothing): inlined into the one-sample driver, the loop for
+    "less" slowed the driver's RGBA8 draws (blended_8x128_512 1.18x,
+    scale_tris_10082 1.05-1.10x), as a call with reference counting it
+    slowed the small triangles of many_small_24k_512 into rgba32f 1.11x
+    (docs/speed.md, "Forty-sixth round")."""
+    if write_z:
+        _row_floats_less(start, end, py, corners, corner_colors, plane, positions, depths, floats, width)
+    else:
+        _row_floats_over(start, end, py, corners, corner_colors, floats, width)
+
+
 @numba.njit(error_model="numpy", inline="always")
 def _row_floats_less(start, end, py, corners, corner_colors, plane, positions, depths, floats, width):
     """`_float_fragments` of an unlit, untextured, interpolated triangle's
