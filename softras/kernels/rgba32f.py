@@ -18,8 +18,8 @@ sample an unlit, interpolated draw without alpha test takes a row loop
 instead when it is blended "over" without depth (`_row_floats_over`) or
 depth-tested "less" with depth writes and not blended
 (`_row_floats_less`): the same steps pixel by pixel along a row's run of
-covered pixels, as RGBA8's `softras.kernels.draw._row_pixels_1` (inlined
-into the driver of one sample).
+covered pixels, as RGBA8's `softras.kernels.draw._row_pixels_1`, called
+once a row from the driver of one sample (`_row_floats`).
 
 `resolve` makes the picture from the float samples, gl precision's
 float32 and exact precision's float64 alike (`softras.kernels.exact.resolve`
