@@ -962,30 +962,35 @@ def clip_list(scene, k):
     return clip.triangle_list_gl(vertex.to_clip(draw.mesh.positions, mvp, "gl"), draw.mesh.indices)
 
 
+def assert_same_on_one_and_two_threads(scene, what):
+    """The scene's gl render by the kernels equals the stages' with numba
+    set to 1 and to 2 threads (the work in one call, and in a share a
+    thread), each time from zeroed scratch buffers: a set-up row or lit
+    colour a share skipped is then wrong in the picture, not left right
+    from the render before."""
+    general = render_scene(scene, precision="gl", fast_path=False)
+    before = numba.get_num_threads()
+    try:
+        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+            numba.set_num_threads(threads)
+            for buffer in fastpath._scratch.buffers.values():
+                buffer.fill(0)
+            assert_same(general, render_scene(scene, precision="gl"), f"{what}, {threads} threads")
+    finally:
+        numba.set_num_threads(before)
+
+
 @pytest.mark.parametrize("textured", [False, True])
 @pytest.mark.parametrize("offset", [-1, 0, 1])
 def test_parallel_setup_threshold_is_bit_identical(offset, textured):
     """PARALLEL_SETUP - 1, PARALLEL_SETUP and + 1 clipped triangles (`_setup`
     in one call, and in a share a thread), fans from the clipper among them,
     colours and uvs at the corners, with 1 and 2 threads."""
-    import numba
     assert k_setup.PARALLEL_SETUP == 4096
     target = k_setup.PARALLEL_SETUP + offset
     scene = softras.load_scene(counted_scene(target, seed=300 + offset, textured=textured,
                                              cull="back" if offset else "none"))
-    general = render_scene(scene, precision="gl", fast_path=False)
-    before = numba.get_num_threads()
-    try:
-        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
-            numba.set_num_threads(threads)
-            # Zeroed scratch tables: a triangle the set-up skipped is then
-            # invisible (and the picture wrong), not drawn from stale rows.
-            for buffer in fastpath._scratch.buffers.values():
-                buffer.fill(0)
-            assert_same(general, render_scene(scene, precision="gl"),
-                        f"{target} triangles, textured {textured}, {threads} threads")
-    finally:
-        numba.set_num_threads(before)
+    assert_same_on_one_and_two_threads(scene, f"{target} triangles, textured {textured}")
 
 
 @pytest.mark.parametrize("offset", [-1, 0, 1])
@@ -996,7 +1001,6 @@ def test_parallel_lighting_threshold_is_bit_identical(offset):
     light, with 1 and 2 threads: a strip of small triangles along a random
     walk, so that every vertex is in sight and a vertex the lighting
     skipped shows."""
-    import numba
     assert k_light.PARALLEL_LIGHTING == 4096
     n = k_light.PARALLEL_LIGHTING + offset
     rng = np.random.default_rng(400 + offset)
@@ -1014,16 +1018,7 @@ def test_parallel_lighting_threshold_is_bit_identical(offset):
                    "material": {"shading": "gouraud", "color": [0.8, 0.6, 0.3, 1], "ambient": 0.1,
                                 "diffuse": 0.7, "specular": 0.5, "shininess": 24}}]})
     assert len(scene.draws[0].mesh.positions) == n
-    general = render_scene(scene, precision="gl", fast_path=False)
-    before = numba.get_num_threads()
-    try:
-        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
-            numba.set_num_threads(threads)
-            for buffer in fastpath._scratch.buffers.values():     # (no lit colours left from the last render)
-                buffer.fill(0)
-            assert_same(general, render_scene(scene, precision="gl"), f"{n} vertices, {threads} threads")
-    finally:
-        numba.set_num_threads(before)
+    assert_same_on_one_and_two_threads(scene, f"{n} vertices")
 
 
 def full_screen(width: int, height: int, textured: bool = False, samples: int = 1) -> dict:

@@ -139,7 +139,8 @@ def _row_floats_less(start, end, py, corners, corner_colors, plane, positions, d
     dz/dy) of the set-up triangle, positions (x, y) the sample's within the
     pixel), the straight colour under the weights `_weights_at` at the
     pixel centre, premultiplied, stored rounded to float32 where the depth
-    test passed (`_write_floats` with no blend: the fragment's value).
+    test passed (what `_write_floats` stores without a blend: the
+    fragment's value).
     The same operations in the same order as the lanes; a select, not a
     branch, where the test fails.  depths, floats : the depth buffer and
     the colour buffer (H, W, 1, 4) seen as one row each; width : the
@@ -158,10 +159,10 @@ def _row_floats_less(start, end, py, corners, corner_colors, plane, positions, d
         r, g, b, a = _mix(w, corner_colors.r), _mix(w, corner_colors.g), _mix(w, corner_colors.b), \
             _mix(w, corner_colors.a)
         j = i * np.uint64(4)
-        floats[j] = _blend(0, r * a, 0.0, a) if passed else floats[j]
-        floats[j + np.uint64(1)] = _blend(0, g * a, 0.0, a) if passed else floats[j + np.uint64(1)]
-        floats[j + np.uint64(2)] = _blend(0, b * a, 0.0, a) if passed else floats[j + np.uint64(2)]
-        floats[j + np.uint64(3)] = _blend(0, a, 0.0, a) if passed else floats[j + np.uint64(3)]
+        floats[j] = r * a if passed else floats[j]
+        floats[j + np.uint64(1)] = g * a if passed else floats[j + np.uint64(1)]
+        floats[j + np.uint64(2)] = b * a if passed else floats[j + np.uint64(2)]
+        floats[j + np.uint64(3)] = a if passed else floats[j + np.uint64(3)]
 
 
 @numba.njit(error_model="numpy", inline="always")
