@@ -387,6 +387,11 @@ MUTATIONS: tuple[Mutation, ...] = (
          "        if _r(abs(x2diff) + abs(y2diff), gl) < 0.5:\n            draw_end = True\n"
          "        elif (x2diff >= 0.0) != (-dx >= 0.0):"),
        ("tests/stages/test_lines.py", "tests/test_random_lines.py")),
+    _m("line_row_slice_level_edge", "lines", "stages",
+       "a level edge of a line's quad bounds a row's slice on the left, as a rising edge does",
+       E("softras/pipeline/lines.py", "        if rise > 0.0:\n            lo = max(lo, x)",
+         "        if rise >= 0.0:\n            lo = max(lo, x)"),
+       ("tests/stages/test_lines.py", "tests/test_random_lines.py")),
     # -------------------------------------------------- fast path machinery
     _m("fast_parallel_setup_drops_a_chunk", "fast path set-up", "fast path",
        "the set-up in shares (>= PARALLEL_SETUP triangles) stops each share one triangle short",
@@ -472,6 +477,10 @@ MUTATIONS: tuple[Mutation, ...] = (
        E("softras/kernels/lines.py", "range(r * n_lines // n_threads, (r + 1) * n_lines // n_threads)",
          "range(r * n_lines // n_threads, (r + 1) * n_lines // n_threads - 1)"),
        (FAST,)),
+    _m("fast_lines_rgba32f_into_words", "lines", "fast path",
+       "the line kernel's rgba32f copy of its loop writes RGBA8 words, as the other copy does",
+       E("softras/kernels/lines.py", "color32, color_f, True,\n", "color32, color_f, False,\n"),
+       ("tests/test_rgba32f_path.py", FAST)),
     _m("fast_vertex_lighting_light_colour", "shading", "fast path",
        "Gouraud's vertex lighting (in passes) gives the red term the light's green",
        E("softras/kernels/light.py", "out[v, 0] + _light_term(cr, diffuse", "out[v, 0] + _light_term(cg, diffuse"),

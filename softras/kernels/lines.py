@@ -188,6 +188,21 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
 @numba.njit(error_model="numpy")
 def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift, color32, color_f, rgba32f, depth,
                  depth_func, write_z, blend, table):
+    """`_cover_lines_into` with rgba32f a constant in each of its two
+    copies: with it a flag at run time, the RGBA8 loop (the rgba32f
+    writes beside it) took 1.31-1.37 ms on one thread for lines_8k_512's
+    coverage, against 1.15-1.19 (docs/speed.md, "Forty-seventh round")."""
+    if rgba32f:
+        _cover_lines_into(r, n_threads, material, offsets, positions, rectangular, shift, color32, color_f, True,
+                          depth, depth_func, write_z, blend, table)
+    else:
+        _cover_lines_into(r, n_threads, material, offsets, positions, rectangular, shift, color32, color_f, False,
+                          depth, depth_func, write_z, blend, table)
+
+
+@numba.njit(error_model="numpy", inline="always")
+def _cover_lines_into(r, n_threads, material, offsets, positions, rectangular, shift, color32, color_f, rgba32f,
+                      depth, depth_func, write_z, blend, table):
     """The set-up lines of the `LineTable` in order, in the bands of rows
     r, r + n_threads, ... (BAND rows each): covered (`_raster_quad`'s rows
     and columns), and each covered pixel shaded and applied at once.

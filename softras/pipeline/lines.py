@@ -610,7 +610,10 @@ def _quad_plane(qx, qy, i, bottom_edge_rule):
 # pixel for positions below 2^40 raster units (clipped lines lie within the
 # view volume, or the guard band's 8192 pixels in exact precision), so no
 # pixel that holds a covered sample is missed (tests/stages/test_lines.py
-# tests every sample of the binned region).
+# tests every sample of the binned region).  A one-row slice's bound (a
+# corner plus a quotient times a difference) errs as little where it
+# bounds anything: a term it adds to a corner there is below the same
+# 2^40.
 _MARGIN = 1e-6
 
 
@@ -629,12 +632,44 @@ def _quad_rows(qy, unit, box, region):
 @numba.njit(cache=True, inline="always")
 def _row_span(qx, qy, py, unit, box, region):
     """The candidate pixel columns (px0, px1) of row py (px0 > px1: none):
-    the quad's x extent within the row's sample band (its corners inside
-    the band and its edges' crossings of the band's borders: the quad is a
-    parallelogram, convex, so nothing of it in the band lies beyond these),
-    widened by the sample offsets (box: `_sample_box`) and _MARGIN, within
-    region.  One band border for
-    one row of samples (the same y: lo_y == hi_y)."""
+    the quad's x extent within the row's sample band, widened by the sample
+    offsets (box: `_sample_box`) and _MARGIN, within region.
+
+    One row of samples (every sample at the same y, as at one sample a
+    pixel) meets the quad in one slice, bounded on the left by the lines of
+    the edges whose inside lies to their right (qy rising along the edge)
+    and on the right by the others (`_quad_plane`: E >= 0 is x >= or <= the
+    edge's line at that y): the largest left and the smallest right bound,
+    with no branch on where the edges end.  A band of samples at several y
+    is `_band_span`'s, called: inlined beside this, it slowed the one-row
+    case by as much as its branches did (lines_8k_512's coverage on one
+    thread, in a copy of the line kernel's loop without its rgba32f
+    writes: 1.43 ms with the band's search for every row, 1.30 with it
+    inlined here, 1.14 called; docs/speed.md, "Forty-seventh round")."""
+    if box[2] != box[3]:
+        return _band_span(qx, qy, py, unit, box, region)
+    y = py * unit + box[2]
+    lo = min(min(qx[0], qx[1]), min(qx[2], qx[3]))
+    hi = max(max(qx[0], qx[1]), max(qx[2], qx[3]))
+    for i in range(4):
+        j = (i + 1) & 3
+        rise = qy[j] - qy[i]
+        # (A division on every path, by 1 for a level edge, which bounds
+        # nothing: hoisted out of the row loop; under a branch it was not.)
+        x = qx[i] + (y - qy[i]) * ((qx[j] - qx[i]) / (rise if rise != 0.0 else 1.0))
+        if rise > 0.0:
+            lo = max(lo, x)
+        elif rise < 0.0:
+            hi = min(hi, x)
+    return _columns(lo, hi, unit, box, region)
+
+
+@numba.njit(cache=True)
+def _band_span(qx, qy, py, unit, box, region):
+    """`_row_span` for a row whose samples lie at several y (box[2] <
+    box[3]): the quad's corners inside the row's band and its edges'
+    crossings of the band's borders (the quad is a parallelogram, convex, so
+    nothing of it in the band lies beyond these)."""
     lo_y = py * unit + box[2]
     hi_y = py * unit + box[3]
     lo = np.inf
@@ -644,7 +679,7 @@ def _row_span(qx, qy, py, unit, box, region):
         if lo_y <= qy[i] <= hi_y:
             lo = min(lo, qx[i])
             hi = max(hi, qx[i])
-        for k in range(2 if hi_y != lo_y else 1):
+        for k in range(2):
             b = hi_y if k else lo_y
             da = qy[i] - b
             db = qy[j] - b
@@ -652,6 +687,14 @@ def _row_span(qx, qy, py, unit, box, region):
                 xb = qx[i] + (b - qy[i]) * (qx[j] - qx[i]) / (qy[j] - qy[i])
                 lo = min(lo, xb)
                 hi = max(hi, xb)
+    return _columns(lo, hi, unit, box, region)
+
+
+@numba.njit(cache=True, inline="always")
+def _columns(lo, hi, unit, box, region):
+    """The pixel columns (px0, px1) whose samples (box: `_sample_box`) can
+    lie in the raster x range lo .. hi, widened by _MARGIN, within region;
+    (0, -1) when lo > hi."""
     if lo > hi:
         return 0, -1
     return (max(int(math.ceil((lo - box[1]) / unit - _MARGIN)), region[0]),
