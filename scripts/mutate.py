@@ -387,10 +387,10 @@ MUTATIONS: tuple[Mutation, ...] = (
          "        if _r(abs(x2diff) + abs(y2diff), gl) < 0.5:\n            draw_end = True\n"
          "        elif (x2diff >= 0.0) != (-dx >= 0.0):"),
        ("tests/stages/test_lines.py", "tests/test_random_lines.py")),
-    _m("line_row_slice_level_edge", "lines", "stages",
-       "a level edge of a line's quad bounds a row's slice on the left, as a rising edge does",
-       E("softras/pipeline/lines.py", "        if rise > 0.0:\n            lo = max(lo, x)",
-         "        if rise >= 0.0:\n            lo = max(lo, x)"),
+    _m("line_row_slice_far_corner", "lines", "stages",
+       "a row's slice of a line's quad takes each edge's line through the edge's far corner",
+       E("softras/pipeline/lines.py", "            x = qx[i] + (y - qy[i]) * ((qx[j] - qx[i]) / rise)",
+         "            x = qx[j] + (y - qy[i]) * ((qx[j] - qx[i]) / rise)"),
        ("tests/stages/test_lines.py", "tests/test_random_lines.py")),
     # -------------------------------------------------- fast path machinery
     _m("fast_parallel_setup_drops_a_chunk", "fast path set-up", "fast path",

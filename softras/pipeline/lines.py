@@ -654,13 +654,12 @@ def _row_span(qx, qy, py, unit, box, region):
     for i in range(4):
         j = (i + 1) & 3
         rise = qy[j] - qy[i]
-        # (A division on every path, by 1 for a level edge, which bounds
-        # nothing: hoisted out of the row loop; under a branch it was not.)
-        x = qx[i] + (y - qy[i]) * ((qx[j] - qx[i]) / (rise if rise != 0.0 else 1.0))
-        if rise > 0.0:
-            lo = max(lo, x)
-        elif rise < 0.0:
-            hi = min(hi, x)
+        if rise != 0.0:                 # (a level edge bounds no x)
+            x = qx[i] + (y - qy[i]) * ((qx[j] - qx[i]) / rise)
+            if rise > 0.0:
+                lo = max(lo, x)
+            else:
+                hi = min(hi, x)
     return _columns(lo, hi, unit, box, region)
 
 
