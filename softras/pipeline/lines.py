@@ -639,8 +639,8 @@ def _row_span(qx, qy, py, unit, box, region):
     pixel) meets the quad in one slice, bounded on the left by the lines of
     the edges whose inside lies to their right (qy rising along the edge)
     and on the right by the others (`_quad_plane`: E >= 0 is x >= or <= the
-    edge's line at that y): the largest left and the smallest right bound,
-    with no branch on where the edges end.  A band of samples at several y
+    edge's line at that y): the largest left and the smallest right bound
+    within the quad's x extent, with no branch on where the edges end.  A band of samples at several y
     is `_band_span`'s, called: inlined beside this, it slowed the one-row
     case by as much as its branches did (lines_8k_512's coverage on one
     thread, in a copy of the line kernel's loop without its rgba32f
