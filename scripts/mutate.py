@@ -161,6 +161,10 @@ MUTATIONS: tuple[Mutation, ...] = (
          "        for p in range(4, 6):\n            d = np.float32(FRUSTUM_PLANES[p, 0] * x"),
        (FAST, "tests/test_extremes.py")),
     # ------------------------------------------------------------------ setup
+    _m("clip_pass_through_ignores_nan", "clip", "fast path",
+       "a draw whose vertices are all inside the planes or not finite passes every triangle through, NaN ones too",
+       E("softras/pipeline/clip.py", "    if not codes.any():", "    if not (codes & 63).any():"),
+       ("tests/stages/test_clip.py", "tests/test_extremes.py", FAST)),
     _m("fill_rule_top_edges", "setup", "stages",
        "horizontal edges own their samples when they are top edges, not bottom edges",
        E("softras/pipeline/setup.py", "inclusive = (sign_a * a > 0) | ((a == 0) & (sign_b * b > 0))",

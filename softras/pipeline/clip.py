@@ -434,6 +434,8 @@ def triangle_list_gl(clip, indices):
     """
     codes = outcodes_gl(clip)
     m = indices.shape[0]
+    if not codes.any():                     # (every vertex inside: every triangle passes through)
+        return np.arange(m), np.full(m, -1), np.empty((0, 3, 4)), np.empty((0, 3, 3))
     status = np.zeros(m, np.int64)          # 0 culled, 1 passed through, 2 crossing
     n_cross = 0
     for t in range(m):

@@ -154,6 +154,26 @@ def test_compiled_clipper_equals_clip_polygon():
     assert (ref_weights[passed] == np.eye(3)).all()
 
 
+@pytest.mark.parametrize("bad", [None, np.nan, np.inf])
+def test_triangle_list_of_a_draw_inside_the_planes(bad):
+    """`triangle_list_gl` returns early when every vertex is inside every
+    plane (every triangle passes through): it gives `clip_triangles`' list,
+    and a draw inside the planes but for one vertex that is not finite
+    (NaN or inf: the clipper culls its triangles) takes the whole list."""
+    rng = np.random.default_rng(20261129)
+    w = rng.uniform(0.5, 2.0, size=(300, 1))
+    clip = np.hstack([rng.uniform(-0.9, 0.9, size=(300, 3)) * w, w])
+    indices = rng.integers(300, size=(500, 3))
+    if bad is not None:
+        clip[indices[7, 1], 0] = bad
+    out = clip_triangles(clip, indices, precision="gl", policy="llvmpipe")
+    source, slot, fan_clip, fan_weights = triangle_list_gl(clip, indices)
+    np.testing.assert_array_equal(source, out.source)
+    assert (slot == -1).all() and len(fan_clip) == len(fan_weights) == 0
+    np.testing.assert_array_equal(clip[indices[source]], out.clip)
+    assert len(source) == (500 if bad is None else 500 - (indices == indices[7, 1]).any(axis=1).sum())
+
+
 def _wild_triangles(rng, n, planes):
     """`_crossing_triangles`, made wilder: (V, 4) clip-space vertices and
     (n, 3) indices.  Some vertices have float64 values (not float32 ones),
