@@ -157,9 +157,9 @@ def test_compiled_clipper_equals_clip_polygon():
 @pytest.mark.parametrize("bad", [None, np.nan, np.inf])
 def test_triangle_list_of_a_draw_inside_the_planes(bad):
     """`triangle_list_gl` returns early when every vertex is inside every
-    plane (every triangle passes through): it gives `clip_triangles`' list,
-    and a draw inside the planes but for one vertex that is not finite
-    (NaN or inf: the clipper culls its triangles) takes the whole list."""
+    plane (every triangle passes through): it gives `clip_triangles`' list.
+    The same draw with one vertex not finite (NaN or inf: the clipper culls
+    its triangles) takes the whole classification and gives its list too."""
     rng = np.random.default_rng(20261129)
     w = rng.uniform(0.5, 2.0, size=(300, 1))
     clip = np.hstack([rng.uniform(-0.9, 0.9, size=(300, 3)) * w, w])
