@@ -396,6 +396,11 @@ MUTATIONS: tuple[Mutation, ...] = (
        E("softras/pipeline/lines.py", "            x = qx[i] + (y - qy[i]) * ((qx[j] - qx[i]) / rise)",
          "            x = qx[j] + (y - qy[i]) * ((qx[j] - qx[i]) / rise)"),
        ("tests/stages/test_lines.py", "tests/test_random_lines.py")),
+    _m("line_row_slice_off_by_a_subpixel", "lines", "stages",
+       "a row's slice of a line's quad shifted right by one raster unit (1/256 pixel)",
+       E("softras/pipeline/lines.py", "            x = qx[i] + (y - qy[i]) * ((qx[j] - qx[i]) / rise)",
+         "            x = qx[i] + (y - qy[i]) * ((qx[j] - qx[i]) / rise) + 1.0"),
+       ("tests/stages/test_lines.py", "tests/test_random_lines.py")),
     # -------------------------------------------------- fast path machinery
     _m("fast_parallel_setup_drops_a_chunk", "fast path set-up", "fast path",
        "the set-up in shares (>= PARALLEL_SETUP triangles) stops each share one triangle short",

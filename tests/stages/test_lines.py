@@ -231,6 +231,35 @@ def test_candidate_search_finds_every_covered_sample(coords, msaa):
     assert got == brute_force(qx[0], qy[0], offsets, region)
 
 
+def test_candidate_search_on_pixel_centres_level_and_long_lines():
+    """The candidate search (`_row_span`: at one sample a row's slice between
+    the quad's edge lines) misses nothing where its bounds fall exactly on
+    samples: end points on pixel centres and borders (halves), level and
+    upright lines and ones 1e-9 off them, and lines thousands of pixels
+    long crossing the picture; every sample of the binned region tested,
+    1 and 4 samples."""
+    rng = np.random.default_rng(20261129)
+    width, height = 64, 48
+    windows = [np.round(rng.uniform(-10, 70, 4) * 2) / 2 for _ in range(20)]
+    for _ in range(20):
+        x, y = rng.uniform(0, 60, 2)
+        windows.append(np.array([x, y, x + rng.choice([0, 1e-9, 30]), y + rng.choice([0, 1e-9, 25])]))
+    windows += [rng.uniform(-3000, 3000, 4) for _ in range(20)]
+    for x0, y0, x1, y1 in windows:
+        for msaa in (False, True):
+            window = np.array([[[x0, y0], [x1, y1]]])
+            positions = MSAA4 if msaa else np.array([[0.5, 0.5]])
+            frags, _ = lines.rasterize_lines(window, width, height, sample_positions=positions)
+            got = {(x, y): m for x, y, m in zip(frags.x.tolist(), frags.y.tolist(), frags.mask.tolist())}
+            qx, qy, ok = lines.line_quads(window, rectangular=msaa)
+            region = np.zeros(4, np.int64)
+            if not ok[0] or not lines._binned_region(qx[0], qy[0], 0, msaa, width, height, region):
+                assert got == {}
+                continue
+            offsets = np.rint((positions - (0.0 if msaa else 0.5)) * 256)
+            assert got == brute_force(qx[0], qy[0], offsets, region), (x0, y0, x1, y1, msaa)
+
+
 def test_msaa_rectangular_line_by_hand():
     # (0.5, 1)-(4.5, 1) with 4x MSAA: the rectangle x in [0.5, 4.5], y in
     # [0.5, 1.5].  Samples (x, y) within a pixel: s0 (.375,.125) s1 (.875,.375)
