@@ -95,8 +95,9 @@ def draw_lines(scene, draw, fb, positions: np.ndarray) -> None:
     shift = lines_stage.attribute_shift("gl", rectangular)
     write_z = bool(draw.depth_write) and depth_func != 0
     blend = ops.BLEND_MODES[draw.blend]
+    rgba32f = holds_floats(fb)
     on_threads(lambda r: _COVER_LINES(r, n_threads, material, offsets, positions, rectangular, shift, fb.color32,
-                                      fb.color_f, holds_floats(fb), fb.depth, depth_func, write_z, blend, *table),
+                                      fb.color_f, rgba32f, fb.depth, depth_func, write_z, blend, *table),
                n_threads)
 
 

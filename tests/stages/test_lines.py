@@ -211,13 +211,10 @@ def brute_force(qx, qy, offsets, region):
     return covered
 
 
-@settings(max_examples=120, deadline=None)
-@given(st.lists(st.floats(-6, 30, allow_nan=False), min_size=4, max_size=4), st.booleans())
-def test_candidate_search_finds_every_covered_sample(coords, msaa):
-    """The per-row candidate search of the numba kernel misses nothing: it
-    equals a brute-force test of every sample in llvmpipe's binned region."""
-    x0, y0, x1, y1 = coords
-    width, height = 24, 20
+def assert_candidates_cover_every_sample(x0, y0, x1, y1, width, height, msaa):
+    """The line (x0, y0)-(x1, y1)'s fragments from `rasterize_lines` (its
+    per-row candidate search, then the plane tests) are a brute-force test
+    of every sample in llvmpipe's binned region, at 1 sample or MSAA4."""
     window = np.array([[[x0, y0], [x1, y1]]])
     positions = MSAA4 if msaa else np.array([[0.5, 0.5]])
     frags, _ = lines.rasterize_lines(window, width, height, sample_positions=positions)
@@ -225,10 +222,18 @@ def test_candidate_search_finds_every_covered_sample(coords, msaa):
     qx, qy, ok = lines.line_quads(window, rectangular=msaa)
     region = np.zeros(4, np.int64)
     if not ok[0] or not lines._binned_region(qx[0], qy[0], 0, msaa, width, height, region):
-        assert got == {}
+        assert got == {}, (x0, y0, x1, y1, msaa)
         return
     offsets = np.rint((positions - (0.0 if msaa else 0.5)) * 256)
-    assert got == brute_force(qx[0], qy[0], offsets, region)
+    assert got == brute_force(qx[0], qy[0], offsets, region), (x0, y0, x1, y1, msaa)
+
+
+@settings(max_examples=120, deadline=None)
+@given(st.lists(st.floats(-6, 30, allow_nan=False), min_size=4, max_size=4), st.booleans())
+def test_candidate_search_finds_every_covered_sample(coords, msaa):
+    """The per-row candidate search of the numba kernel misses nothing: it
+    equals a brute-force test of every sample in llvmpipe's binned region."""
+    assert_candidates_cover_every_sample(*coords, 24, 20, msaa)
 
 
 def test_candidate_search_on_pixel_centres_level_and_long_lines():
@@ -239,25 +244,14 @@ def test_candidate_search_on_pixel_centres_level_and_long_lines():
     long crossing the picture; every sample of the binned region tested,
     1 and 4 samples."""
     rng = np.random.default_rng(20261129)
-    width, height = 64, 48
     windows = [np.round(rng.uniform(-10, 70, 4) * 2) / 2 for _ in range(20)]
     for _ in range(20):
         x, y = rng.uniform(0, 60, 2)
         windows.append(np.array([x, y, x + rng.choice([0, 1e-9, 30]), y + rng.choice([0, 1e-9, 25])]))
     windows += [rng.uniform(-3000, 3000, 4) for _ in range(20)]
-    for x0, y0, x1, y1 in windows:
+    for window in windows:
         for msaa in (False, True):
-            window = np.array([[[x0, y0], [x1, y1]]])
-            positions = MSAA4 if msaa else np.array([[0.5, 0.5]])
-            frags, _ = lines.rasterize_lines(window, width, height, sample_positions=positions)
-            got = {(x, y): m for x, y, m in zip(frags.x.tolist(), frags.y.tolist(), frags.mask.tolist())}
-            qx, qy, ok = lines.line_quads(window, rectangular=msaa)
-            region = np.zeros(4, np.int64)
-            if not ok[0] or not lines._binned_region(qx[0], qy[0], 0, msaa, width, height, region):
-                assert got == {}
-                continue
-            offsets = np.rint((positions - (0.0 if msaa else 0.5)) * 256)
-            assert got == brute_force(qx[0], qy[0], offsets, region), (x0, y0, x1, y1, msaa)
+            assert_candidates_cover_every_sample(*window, 64, 48, msaa)
 
 
 def test_msaa_rectangular_line_by_hand():
