@@ -15,9 +15,10 @@ naming the readable function it must equal:
    culling, counter-clockwise corner order, integer edge functions, fill rule,
    pixel bounding box, depth plane, and the attributes at the corners (clip
    weights x source vertex values, in the pipeline's order);
-4. binning (`softras.kernels.rasterize._bin`): the visible triangles are
-   listed, in draw order, in every 64x64-pixel tile their bounding box touches
-   (1-4 in one compiled call for a small unlit or flat draw,
+4. binning: the visible triangles are listed, in draw order, in every
+   64x64-pixel tile their bounding box touches (the set-up's pass lists
+   and counts, `softras.kernels.rasterize._fill_bins` fills the tiles;
+   1-4 in one compiled call for a small unlit or flat draw,
    `softras.kernels.front_end`);
 5. the tile driver (here: `_make_draw_tiles`, one per sample count and
    texturing): tiles in parallel (shares of the tiles on threads,
@@ -103,7 +104,7 @@ from softras.kernels.light import (NO_LIGHTING, _phong_words, base_colors, flat_
                                    viewing)
 from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
                                  _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats)
-from softras.kernels.rasterize import (BLOCK, TILE, Bins, _bin, _block_test, _edges, _list_pixels, _list_quads,
+from softras.kernels.rasterize import (BLOCK, TILE, Bins, _block_test, _edges, _fill_bins, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
 from softras.kernels.rgba32f import _float_fragments, _row_floats
 from softras.kernels.scratch import _Scratch, read_only
@@ -363,10 +364,10 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
             return None
         base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit)
         tris = _triangle_buffers(take, len(clipped.source), is_textured, lit, world_normals.shape[1])
-        _setup(clip_pos, clipped, scene.width, scene.height, cull, samples.offsets, (base, uvs, world_normals),
-               tris, _scratch)
+        visible, bin_start, bin_tri, pixels = _set_up_and_bin(
+            clip_pos, clipped, scene, cull, samples.offsets, (base, uvs, world_normals), tris, take, tiles_x,
+            tiles_y)
         source = clipped.source
-        visible, bin_start, bin_tri, pixels = _bin(tris.i, tris.bbox, tiles_x, tiles_y)
     if len(visible) == 0:
         return None
     flat = material.shading == "flat"
@@ -398,6 +399,25 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
                tuple(lighting))
     work = draw_work(len(bin_tri), pixels, is_textured or lit, n_samples)
     return TileWork(draw_tiles, records, n_samples, work, len(mesh.indices))
+
+
+def _set_up_and_bin(clip_pos, clipped, scene, cull, offsets, vertex_values, tris, take, tiles_x: int,
+                    tiles_y: int) -> tuple:
+    """`_setup` of the clipped triangles into tris, and their binning:
+    (visible (K,), bin_start (tiles + 1,), bin_tri (N,), pixels) (`Bins`;
+    pixels: the visible boxes' area).  Each set-up share lists the
+    triangles it keeps and counts their tiles as it sets them up
+    (`softras.kernels.setup._setup_range`); the lists joined in share order
+    are the draw order, and `_fill_bins` fills the tiles from the counts
+    summed."""
+    listed = take("listed", (len(clipped.source),), np.int64)
+    counts = np.zeros((numba.get_num_threads(), tiles_x * tiles_y + 1), np.int64)
+    found = _setup(clip_pos, clipped, scene.width, scene.height, cull, offsets, vertex_values, tris, _scratch,
+                   (listed, counts, tiles_x))
+    runs = [listed[start:start + k] for start, k, _ in found]
+    visible = runs[0] if len(runs) == 1 else np.concatenate(runs)
+    bin_start, bin_tri = _fill_bins(visible, tris.bbox, tiles_x, counts[:len(found)].sum(axis=0))
+    return visible, bin_start, bin_tri, int(found[:, 2].sum())
 
 
 def _vertex_inputs(scene: Scene, draw, view, is_textured: bool, lit: bool) -> tuple:
@@ -437,7 +457,7 @@ NO_UVS = np.zeros((0, 2))
 
 
 # A draw's work as `draw_work` estimates it, in ns on one thread: per
-# (triangle, tile) pair that `_bin` lists (each tile sets up the triangle's
+# (triangle, tile) pair that binning lists (each tile sets up the triangle's
 # edges and walks its box there) and per pixel of the visible triangles'
 # boxes, four times that for a draw that textures or Phong-lights each pixel,
 # twice that at more than one sample.  Against the bench scenes' one-thread
@@ -463,7 +483,7 @@ HAND_OFF_NS_PER_DRAW = 3_000
 def draw_work(binned: int, box_pixels: int, heavy: bool, n_samples: int) -> float:
     """The estimated ns of drawing a set-up draw on one thread: ``binned``
     (triangle, tile) pairs and ``box_pixels`` pixels of its visible
-    triangles' boxes (`_bin`), ``heavy`` when it is textured or
+    triangles' boxes (`_set_up_and_bin`), ``heavy`` when it is textured or
     Phong-lit, at n_samples samples (`BINNED_NS`)."""
     return (BINNED_NS * binned + BOX_PIXEL_NS * box_pixels) * (4 if heavy else 1) * (2 if n_samples > 1 else 1)
 

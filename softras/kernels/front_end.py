@@ -4,8 +4,8 @@ and binning.
 `softras.kernels.draw.set_up_triangles` takes a draw through four compiled
 steps: its vertices to clip space (`softras.pipeline.vertex.to_clip`, gl),
 the clipped triangle list (`softras.pipeline.clip.triangle_list_gl`), their
-set-up (`softras.kernels.setup._setup`) and binning
-(`softras.kernels.rasterize._bin`).  Each call into compiled code costs
+set-up with binning's first pass (`softras.kernels.setup._setup`) and
+binning's second (`softras.kernels.rasterize._fill_bins`).  Each call into compiled code costs
 ~65 ns per array it is handed and ~150 ns per array it returns, besides
 the Python around it: a draw of 128 triangles spent ~14 us in the four
 steps, half of it there (docs/speed.md, "Forty-fourth round").  A draw
@@ -20,8 +20,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from softras.kernels.rasterize import _bin
-from softras.kernels.setup import _I_VIS, _setup_range, _window_vertices
+from softras.kernels.rasterize import _fill_bins
+from softras.kernels.setup import _setup_range, _window_vertices
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import vertex
@@ -44,12 +44,12 @@ def _make_front_end(sources: str):
         as a plain tuple, with room for T or more; `softras.kernels.setup._setup`
         serially, the window corners in window = (vertex_f (V, 4) float64,
         vertex_i (V, 2) int64), the vertex values as there) and their
-        binning into tiles_x x tiles_y tiles (`softras.kernels.rasterize._bin`;
-        the rows of tris beyond n are marked not visible).
+        binning into tiles_x x tiles_y tiles (`softras.kernels.setup._setup_range`'s
+        listing and counting, `softras.kernels.rasterize._fill_bins`).
 
         Returns (n, source, visible, bin_start, bin_tri, pixels): n clipped
         triangles, source (n,) the mesh triangle of each (for flat shading),
-        and `_bin`'s lists.  When tris has fewer than n rows (clipping made
+        and the binned lists (`softras.kernels.rasterize.Bins`).  When tris has fewer than n rows (clipping made
         fans) nothing is set up and the lists are empty: the caller asks
         again with room for n."""
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
@@ -62,12 +62,12 @@ def _make_front_end(sources: str):
         _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
         # (The first row as an int64, not the literal 0, which numba would
         # compile `_setup_range` again for: the types of `_setup`'s calls.)
-        _setup_range(np.int64(0), n, window, (indices, source, slot, fan_clip, fan_weights), width, height, cull,
-                     offsets, vertex_values, tris)
-        tri_i = tris[1]
-        for t in range(n, tri_i.shape[0]):        # (the rows beyond: not visible)
-            tri_i[t, _I_VIS] = 0
-        visible, bin_start, bin_tri, pixels = _bin(tri_i, tris[2], tiles_x, tiles_y)
+        listed = np.empty(n, np.int64)
+        counts = np.zeros(tiles_x * tiles_y + 1, np.int64)
+        n_visible, pixels = _setup_range(np.int64(0), n, window, (indices, source, slot, fan_clip, fan_weights),
+                                         width, height, cull, offsets, vertex_values, tris, (listed, counts, tiles_x))
+        visible = listed[:n_visible]
+        bin_start, bin_tri = _fill_bins(visible, tris[2], tiles_x, counts)
         return n, source, visible, bin_start, bin_tri, pixels
 
     return front_end

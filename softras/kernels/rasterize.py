@@ -11,9 +11,11 @@ pixels are found by exact integer division (`_row_run`: `_list_row` lists
 them, `_list_quads` masks a partly covered block's quads with them);
 nothing here materialises a fragment list.
 
-Binning (`_bin`) has no readable counterpart: the visible triangles are
-listed, in draw order, in every TILE x TILE tile their bounding box touches,
-so a tile's pixels see their triangles in the pipeline's fragment order.
+Binning has no readable counterpart: the visible triangles are listed,
+in draw order, in every TILE x TILE tile their bounding box touches
+(counted by the set-up's pass, `softras.kernels.setup._setup_range`,
+filled by `_fill_bins`), so a tile's pixels see their triangles in the
+pipeline's fragment order.
 """
 
 from __future__ import annotations
@@ -24,9 +26,8 @@ import numba
 import numpy as np
 
 from softras.kernels.lanes import _LF_CX, _LF_CY, _LI_COV, _LI_PX, _LI_PY, LANES
-from softras.kernels.setup import _I_A, _I_B, _I_INC, _I_VIS, _I_X0, _I_Y0
+from softras.kernels.setup import _I_A, _I_B, _I_INC, _I_X0, _I_Y0, TILE
 
-TILE = 64          # pixels per tile side (binning and the parallel unit)
 BLOCK = 8          # pixels per block side (hierarchical coverage test)
 
 # One integer edge function of `softras.pipeline.setup.edge_equations`,
@@ -43,35 +44,21 @@ Edge = namedtuple("Edge", ["a", "b", "x0", "y0", "bias"])
 # shape: "Dimension mismatch").
 Edges = namedtuple("Edges", ["e0", "e1", "e2"])
 
-# A draw's binned triangles (`_bin`): tile k's at tri[start[k]:start[k + 1]],
+# A draw's binned triangles (`_fill_bins`): tile k's at tri[start[k]:start[k + 1]],
 # tiles_x tiles per row.
 Bins = namedtuple("Bins", ["start", "tri", "tiles_x"])
 
 
 @numba.njit(cache=True)
-def _bin(tri_i, bbox, tiles_x, tiles_y):
-    """The visible set-up triangles and per-tile triangle lists in draw
-    order: (visible (K,), bin_start (tiles + 1,), bin_tri (N,), pixels).
-    visible: the set-up triangles `softras.pipeline.setup.setup_triangles`
-    keeps (tri_i's _I_VIS flag, `softras.kernels.setup`; listed without a
-    branch: numpy's flatnonzero of the strided flag took 0.55 ms for the
-    71k-triangle scan); tile k's triangles at bin_tri[bin_start[k]:bin_start[k
-    + 1]] (bbox : the set-up triangles' pixel boxes); pixels the sum of the
-    visible boxes' areas (the draw's work, for `softras.kernels.draw.shares`)."""
-    listed = np.empty(tri_i.shape[0], np.int64)
-    n_visible = 0
-    for t in range(tri_i.shape[0]):
-        listed[n_visible] = t
-        n_visible += tri_i[t, _I_VIS] != 0
-    visible = listed[:n_visible]
-    counts = np.zeros(tiles_x * tiles_y + 1, np.int64)
-    pixels = 0
-    for v in range(visible.shape[0]):
-        t = visible[v]
-        pixels += (bbox[t, 1] - bbox[t, 0] + 1) * (bbox[t, 3] - bbox[t, 2] + 1)
-        for ty in range(bbox[t, 2] // TILE, bbox[t, 3] // TILE + 1):
-            for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE + 1):
-                counts[ty * tiles_x + tx + 1] += 1
+def _fill_bins(visible, bbox, tiles_x, counts):
+    """Binning's second pass (the first, `softras.kernels.setup._setup_range`,
+    lists the visible set-up triangles and counts the TILE x TILE tiles
+    their pixel boxes touch): the visible triangles (K,) in draw order
+    into the lists of their tiles, from the tiles' counts (tiles + 1,
+    tile k's at k + 1).  Returns bin_start (tiles + 1,) and bin_tri (N,):
+    tile k's triangles at bin_tri[bin_start[k]:bin_start[k + 1]], in draw
+    order, so a tile's pixels see their triangles in the pipeline's
+    fragment order."""
     start = np.cumsum(counts)
     fill = start[:-1].copy()
     out = np.empty(start[-1], np.int64)
@@ -82,7 +69,7 @@ def _bin(tri_i, bbox, tiles_x, tiles_y):
                 k = ty * tiles_x + tx
                 out[fill[k]] = t
                 fill[k] += 1
-    return visible, start, out, pixels
+    return start, out
 
 
 @numba.njit(cache=True, inline="always")

@@ -11,7 +11,12 @@ triangles that `softras.pipeline.clip.triangle_list_gl` lists.
 
 The set-up triangles are two tables, one row per clipped triangle (layouts
 below), read by the later kernels (`softras.kernels.rasterize`,
-`softras.kernels.interpolate`).
+`softras.kernels.interpolate`).  The same pass lists the triangles it
+keeps and counts the tiles their boxes touch: the first pass of binning,
+in each share of a large draw's set-up on its thread, while the box is
+at hand (the whole binning after the set-up took 0.53-0.69 ms of the
+71k-triangle scan's render, on one thread; docs/speed.md,
+"Forty-eighth round").
 """
 
 from __future__ import annotations
@@ -26,13 +31,14 @@ from softras.pipeline import setup as setup_stage
 
 # Per set-up triangle, float64 row of `tri_f`: window x (3), y (3), z (3),
 # 1/w (3), dz/dx, dz/dy.  int64 row of `tri_i`: edge A (3), B (3), X0 (3),
-# Y0 (3), inclusive (3), corners swapped (1), visible (1).
+# Y0 (3), inclusive (3), corners swapped (1).
 _F_X, _F_Y, _F_Z, _F_W, _F_DZDX, _F_DZDY, _NF = 0, 3, 6, 9, 12, 13, 14
-_I_A, _I_B, _I_X0, _I_Y0, _I_INC, _I_SWAP, _I_VIS, _NI = 0, 3, 6, 9, 12, 15, 16, 17
+_I_A, _I_B, _I_X0, _I_Y0, _I_INC, _I_SWAP, _NI = 0, 3, 6, 9, 12, 15, 16
 
 CULL_CODES = {"none": 0, "back": 1, "front": 2}
 SUBPIXEL_BITS = setup_stage.SUBPIXEL_BITS      # gl precision snaps to 1/256 pixel
 SUBPIXEL_ONE = setup_stage.SUBPIXEL_ONE
+TILE = 64          # pixels per tile side (binning and the parallel unit)
 PARALLEL_SETUP = 4096      # triangles from which `_setup` runs in shares on threads
 
 # A draw's clipped triangle list, as `softras.pipeline.clip.triangle_list_gl`
@@ -55,27 +61,40 @@ Clipped = namedtuple("Clipped", ["indices", "source", "slot", "fan_clip", "fan_w
 Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit"])
 
 
-def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, scratch):
+def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, scratch, bins) -> np.ndarray:
     """`softras.pipeline.setup.setup_triangles` (gl precision) of the clipped
-    triangles (`_setup_range`): in one call, or from PARALLEL_SETUP
-    triangles (read at call time) in a share of them a thread
-    (`softras.kernels.pool.on_threads`).  clip_pos : the mesh's
-    vertices in clip space (V, 4); clipped : the `Clipped` list;
-    vertex_values : (vertex colours (V, 4), vertex uvs (V, 2) or (0, 2)
-    when untextured, vertex world positions and normals (V, 6) or (0, 6)
-    when not Phong-shaded); tris : the `Triangles` to fill; scratch : the caller's reused buffers
-    (`softras.kernels.draw._Scratch`), for the per-vertex tables."""
+    triangles, and the first pass of their binning (`_setup_range`): in one
+    call, or from PARALLEL_SETUP triangles (read at call time) in a share a
+    thread (`softras.kernels.pool.on_threads`), share r taking the r-th of
+    n_shares runs of the triangles.  clip_pos : the mesh's vertices in clip
+    space (V, 4); clipped : the `Clipped` list; vertex_values : (vertex
+    colours (V, 4), vertex uvs (V, 2) or (0, 2) when untextured, vertex
+    world positions and normals (V, 6) or (0, 6) when not Phong-shaded);
+    tris : the `Triangles` to fill; scratch : the caller's reused buffers
+    (`softras.kernels.draw._Scratch`), for the per-vertex tables; bins :
+    (listed (T,) int64, counts (S, tiles + 1) int64 zeros with S at least
+    the thread count, tiles_x), share r's visible triangles listed from
+    its first row and their tiles counted in counts[r].  Returns
+    (n_shares, 3) int64: per share its first row, visible triangles and
+    their boxes' pixels."""
     # The window corners of the input vertices, once per vertex (a vertex is
     # shared by ~6 triangles).
     vertex_f, vertex_i = window_buffers(scratch, len(clip_pos))
     _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
     args = ((vertex_f, vertex_i), tuple(clipped), width, height, cull, offsets, vertex_values, tuple(tris))
+    listed, counts, tiles_x = bins
     n = len(clipped.source)
-    if n < PARALLEL_SETUP:
-        _setup_range(0, n, *args)
-        return
-    n_shares = numba.get_num_threads()          # (asked only here: 3.6 us a call)
-    on_threads(lambda r: _setup_range(r * n // n_shares, (r + 1) * n // n_shares, *args), n_shares)
+    # (The thread count asked only for a parallel set-up: 3.6 us a call.)
+    n_shares = 1 if n < PARALLEL_SETUP else numba.get_num_threads()
+    found = np.empty((n_shares, 3), np.int64)
+
+    def share(r):
+        start = r * n // n_shares
+        found[r, 0] = start
+        found[r, 1], found[r, 2] = _setup_range(start, (r + 1) * n // n_shares, *args, (listed, counts[r], tiles_x))
+
+    on_threads(share, n_shares)
+    return found
 
 
 def window_buffers(scratch, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
@@ -126,7 +145,7 @@ def _window_corner(x, y, z, w, fused, width, height):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _setup_range(start, stop, window, clipped, width, height, cull, offsets, vertex_values, tris):
+def _setup_range(start, stop, window, clipped, width, height, cull, offsets, vertex_values, tris, bins):
     """`softras.pipeline.setup.setup_triangles` (gl precision) and the depth plane of
     `softras.pipeline.interpolate.depth_at_samples`, for the clipped triangles start
     to stop - 1 (clipped: the `Clipped` list as a plain tuple), the input vertices' window corners given
@@ -135,9 +154,17 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
     Fills their rows of tris (the `Triangles` as a plain tuple): f, i, bbox, and the corner
     attributes (`_corner_values`) of vertex_values = (vertex colours (V, 4),
     vertex uvs (V, 2) or (0, 2) when untextured, world positions and
-    normals (V, 6) or (0, 6) when not Phong-shaded); the triangles that the
-    pipeline drops (zero area, culled, empty box) have tri_i[:, _I_VIS] == 0
-    and their other entries undefined.
+    normals (V, 6) or (0, 6) when not Phong-shaded); the rows of the
+    triangles that the pipeline drops (zero area, culled, empty box) are
+    left as they were.
+
+    And the first pass of binning (the second is
+    `softras.kernels.rasterize._fill_bins`), while each triangle's box is
+    at hand: bins = (listed (T,) int64, counts (tiles + 1,) int64,
+    tiles_x) takes the kept triangles, in order, at listed[start:start +
+    n], and counts[k + 1] += 1 for each TILE x TILE tile k their boxes
+    touch.  Returns n and the sum of their boxes' pixels (the draw's work,
+    `softras.kernels.draw.shares`).
     """
     vertex_f, vertex_i = window
     indices, source, slot, fan_clip, fan_weights = clipped
@@ -151,9 +178,10 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
     iw = np.empty(3)
     rx = np.empty(3, np.int64)
     ry = np.empty(3, np.int64)
+    listed, counts, tiles_x = bins
+    n_visible = 0
+    pixels = 0
     for t in range(start, stop):
-        tri_i[t, _I_VIS] = 0
-        tri_i[t, _I_SWAP] = 0
         f = slot[t]
         for k in range(3):
             if f < 0:
@@ -170,6 +198,7 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
         front = area > 0
         if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
             continue
+        tri_i[t, _I_SWAP] = 0 if front else 1
         if not front:                           # swap corners 0 and 1 -> counter-clockwise
             wx[0], wx[1] = wx[1], wx[0]
             wy[0], wy[1] = wy[1], wy[0]
@@ -177,7 +206,6 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
             iw[0], iw[1] = iw[1], iw[0]
             rx[0], rx[1] = rx[1], rx[0]
             ry[0], ry[1] = ry[1], ry[0]
-            tri_i[t, _I_SWAP] = 1
         # Bounding box in pixels, as setup_triangles computes it (its
         # float ceil / floor of a multiple of 1/256 here in integers).
         x_lo = -((max_ox - min(rx[0], min(rx[1], rx[2]))) >> SUBPIXEL_BITS)
@@ -205,7 +233,12 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
             tri_i[t, _I_X0 + i] = x0
             tri_i[t, _I_Y0 + i] = y0
             tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
-        tri_i[t, _I_VIS] = 1
+        listed[start + n_visible] = t
+        n_visible += 1
+        pixels += (b1 - b0 + 1) * (b3 - b2 + 1)
+        for ty in range(b2 // TILE, b3 // TILE + 1):
+            for tx in range(b0 // TILE, b1 // TILE + 1):
+                counts[ty * tiles_x + tx + 1] += 1
         for k in range(3):
             tri_f[t, _F_X + k] = wx[k]
             tri_f[t, _F_Y + k] = wy[k]
@@ -217,6 +250,7 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
             _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP])
         if vertex_lit.shape[0]:
             _corner_values(vertex_lit, corner_lit, t, clipped, tri_i[t, _I_SWAP])
+    return n_visible, pixels
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
