@@ -353,8 +353,10 @@ def test_the_compiled_setup_gives_the_stages_triangles(seed):
 
 def test_the_compiled_corner_values_give_the_stages_values():
     """`exact.corner_values` = `softras.pipeline.render.corner_values`
-    (numpy's einsum, summed from 0: -0 corner values come back +0) on
-    clipped random triangles, values with -0, infinities and NaN."""
+    (a vertex's own values at a corner the clipper passed through, -0
+    kept; at a corner it made numpy's einsum, summed from 0: a -0 sum
+    comes back +0) on clipped random triangles, values with -0,
+    infinities and NaN."""
     scene = softras.load_scene(random_scene(3))
     job = exact_job(scene, samples=4)
     inputs = stages.Pass.of(job, job.positions)

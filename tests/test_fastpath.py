@@ -392,8 +392,8 @@ def test_phong_colors_are_the_stages_to_the_bit():
         lf = np.zeros((k_lanes._NLF, 2 * n))
         lf[k_lanes._LF_W:k_lanes._LF_W + 3, :n] = persp.T
         table, lighting = k_light.light_table(lights, eye, material)
-        phong_colors(n, 0, base[None], np.concatenate([world, normals], axis=1)[None], lf, table,
-                     tuple(lighting), False)
+        lit = (np.concatenate([world, normals], axis=1), np.array([[0, 1, 2]]))     # (corner k in row k)
+        phong_colors(n, 0, base[None], lit, lf, table, tuple(lighting), False)
         got = lf[k_lanes._LF_LIT:k_lanes._LF_LIT + 4, :n].T
         assert np.array_equal(got[:, :3].view(np.int64), expected.view(np.int64)), f"shininess {shininess}"
         assert np.array_equal(got[:, 3], colors[:, 3])
@@ -860,6 +860,50 @@ def test_lane_filter_equals_the_per_channel_fixed_point_lerp():
             for c in range(4):
                 expect = k_texture._lerp8(w, (int(a_word) >> (8 * c)) & 255, (int(b_word) >> (8 * c)) & 255)
                 assert k_rgba8._lane(mixed, c) == expect, (hex(a_word), hex(b_word), w, c)
+
+
+def test_corner_values_are_the_stages_with_signed_zeros_and_infinities():
+    """The set-up's corner attributes (`k_setup._corner_values`, in both
+    corner orders) are `softras.pipeline.render.corner_values`' bit for bit
+    on the triangles the gl clipper lists for a mesh across the clip planes
+    (passed through, and fans whose corners the clipper kept or made), with
+    -0, infinities and NaN among the vertex values: a kept corner takes its
+    vertex's values as they are (its -0 stays -0, another vertex's
+    infinity stays out), a made one the weighted sum from 0."""
+    from softras.pipeline import clip as clip_stage
+    from softras.pipeline import render as render_stage
+    rng = np.random.default_rng(7)
+    n = 60
+    positions = rng.uniform(-1.6, 1.6, size=(n, 4))
+    positions[:, 3] = rng.uniform(0.5, 1.5, size=n)
+    indices = rng.integers(0, n, size=(90, 3))
+    source, slot, fan_clip, fan_weights = clip_stage.triangle_list_gl(positions, indices)
+    assert (slot < 0).any() and (slot >= 0).any()
+    weights = np.where((slot < 0)[:, None, None], np.eye(3), fan_weights[np.maximum(slot, 0)])
+    kept = weights.max(axis=2) == 1.0
+    assert kept[slot >= 0].any() and not kept[slot >= 0].all()
+    values = rng.normal(size=(n, 5))
+    values[::3] = -0.0
+    values[1::7, 1] = np.inf
+    values[2::11, 2] = -np.inf
+    values[3::13, 3] = np.nan
+    clipped = (indices, source, slot, fan_clip, fan_weights)
+    stage_clipped = clip_stage.ClippedTriangles(np.zeros((len(source), 3, 4)), source, weights)
+    for swapped in (0, 1):
+        order = np.array([1, 0, 2] if swapped else [0, 1, 2])
+        tris = type("Tris", (), {"triangle": np.arange(len(source)), "corner": np.tile(order, (len(source), 1))})
+        mesh = type("Mesh", (), {"indices": indices})
+        with np.errstate(invalid="ignore"):
+            expected = render_stage.corner_values(stage_clipped, tris, mesh)[1](values)
+        got = np.empty((len(source), 3, values.shape[1]))
+        for t in range(len(source)):
+            k_setup._corner_values(values, got, t, clipped, swapped)
+        assert np.array_equal(expected, got, equal_nan=True), swapped
+        assert np.array_equal(np.signbit(expected), np.signbit(got)), swapped
+        own = indices[source][np.arange(len(source))[:, None], weights.argmax(axis=2)][:, order]
+        kept_here = kept[:, order]
+        assert np.array_equal(got[kept_here], values[own[kept_here]], equal_nan=True)
+        assert np.array_equal(np.signbit(got[kept_here]), np.signbit(values[own[kept_here]]))
 
 
 def test_reused_scratch_buffers_do_not_leak_between_renders():

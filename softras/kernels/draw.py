@@ -13,8 +13,9 @@ naming the readable function it must equal:
 3. setup (`softras.kernels.setup`, one pass over the clipped triangles): viewport
    transform with llvmpipe's fused multiply-add, 1/256 snapping, area and
    culling, counter-clockwise corner order, integer edge functions, fill rule,
-   pixel bounding box, depth plane, and the attributes at the corners (clip
-   weights x source vertex values, in the pipeline's order);
+   pixel bounding box, depth plane, and the attributes at the corners (a
+   vertex's values, or for a vertex the clipper made the clip weights x
+   source vertex values, in the pipeline's order);
 4. binning: the visible triangles are listed, in draw order, in every
    64x64-pixel tile their bounding box touches (the set-up's pass lists
    and counts, `softras.kernels.rasterize._fill_bins` fills the tiles;
@@ -346,10 +347,10 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
     tiles_x, tiles_y = (scene.width + TILE - 1) // TILE, (scene.height + TILE - 1) // TILE
     if len(indices) < PARALLEL_SETUP and material.shading in ("unlit", "flat"):
         # (Vertex values before clipping here: they need no lighting.)
-        base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit)
+        base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit, take)
         rows = len(indices)
         while True:
-            tris = _triangle_buffers(take, rows, is_textured, lit, world_normals.shape[1])
+            tris = _triangle_buffers(take, rows, is_textured, world_normals)
             n, source, visible, bin_start, bin_tri, pixels = _front_end(
                 read_only(mesh.positions, np.float32), mvp.astype(np.float32), indices, scene.width,
                 scene.height, cull, samples.offsets, (base, uvs, world_normals), tuple(tris),
@@ -362,8 +363,9 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
         clipped = Clipped(indices, *clip_stage.triangle_list_gl(clip_pos, indices))
         if len(clipped.source) == 0:
             return None
-        base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit)
-        tris = _triangle_buffers(take, len(clipped.source), is_textured, lit, world_normals.shape[1])
+        base, uvs, world_normals, lights, lighting = _vertex_inputs(scene, draw, view, is_textured, lit, take,
+                                                                    3 * len(clipped.fan_weights))
+        tris = _triangle_buffers(take, len(clipped.source), is_textured, world_normals)
         visible, bin_start, bin_tri, pixels = _set_up_and_bin(
             clip_pos, clipped, scene, cull, samples.offsets, (base, uvs, world_normals), tris, take, tiles_x,
             tiles_y)
@@ -420,31 +422,34 @@ def _set_up_and_bin(clip_pos, clipped, scene, cull, offsets, vertex_values, tris
     return visible, bin_start, bin_tri, int(found[:, 2].sum())
 
 
-def _vertex_inputs(scene: Scene, draw, view, is_textured: bool, lit: bool) -> tuple:
-    """A triangle draw's per-vertex inputs, in this thread's reused buffers
-    (the set-up copies them to the corners, and each draw's set-up is done
-    before the next): straight base colours (V, 4) (`base_colors`: lit by
-    Gouraud), uvs rounded to float32 (V, 2) or NO_UVS, and for Phong
-    shading the world positions and normals, light table and `Lighting`
-    (`phong_inputs`), else NO_LIGHTING."""
+def _vertex_inputs(scene: Scene, draw, view, is_textured: bool, lit: bool, take, fan_rows: int = 0) -> tuple:
+    """A triangle draw's per-vertex inputs: straight base colours (V, 4)
+    (`base_colors`: lit by Gouraud), uvs rounded to float32 (V, 2) or
+    NO_UVS, in this thread's reused buffers (the set-up copies them to the
+    corners, and each draw's set-up is done before the next); and for
+    Phong shading the world positions and normals with fan_rows rows more
+    for the corners the clipper makes (the drivers read them by row:
+    from the draw's ``take``, as its set-up tables), light table and
+    `Lighting` (`phong_inputs`), else NO_LIGHTING."""
     mesh = draw.mesh
     base = base_colors(scene, draw, _scratch.take, view)
     uvs = NO_UVS
     if is_textured:
         uvs = _scratch.take("uvs", mesh.uvs.shape, np.float64)
         uvs[:] = mesh.uvs.astype(np.float32)
-    world_normals, lights, lighting = phong_inputs(scene, draw, _scratch.take, view) if lit else NO_LIGHTING
+    world_normals, lights, lighting = phong_inputs(scene, draw, take, view, fan_rows) if lit else NO_LIGHTING
     return base, uvs, world_normals, lights, lighting
 
 
-def _triangle_buffers(take, rows: int, is_textured: bool, lit: bool, lit_columns: int) -> Triangles:
+def _triangle_buffers(take, rows: int, is_textured: bool, lit: np.ndarray) -> Triangles:
     """`Triangles` for ``rows`` set-up triangles from ``take(name, shape,
-    dtype)``: the corner uvs and lit attributes (lit_columns wide) only
-    when the draw reads them, else one unused row."""
+    dtype)``: the corner uvs and the rows of the lit attributes ``lit``
+    (`phong_inputs`', or NO_LIGHTING's (0, 6) when unlit) only when the
+    draw reads them, else one unused row."""
     return Triangles(take("tri_f", (rows, _NF), np.float64), take("tri_i", (rows, _NI), np.int64),
                      take("bbox", (rows, 4), np.int64), take("colors", (rows, 3, 4), np.float64),
-                     take("uv", (rows if is_textured else 1, 3, 2), np.float64),
-                     take("lit", (rows, 3, lit_columns) if lit else (1, 3, 6), np.float64))
+                     take("uv", (rows if is_textured else 1, 3, 2), np.float64), lit,
+                     take("lit_rows", (rows if len(lit) else 1, 3), np.int64))
 
 
 def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:
@@ -646,7 +651,8 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     lf, li, rows = lanes.lf, lanes.li, lanes.rows
     offsets, positions = samples.offsets, samples.positions
     bin_start, bin_tri = bins.start, bins.tri
-    tri_f, tri_i, bbox, colors, uv, lit = tris.f, tris.i, tris.bbox, tris.colors, tris.uv, tris.lit
+    tri_f, tri_i, bbox, colors, uv = tris.f, tris.i, tris.bbox, tris.colors, tris.uv
+    lit = (tris.lit, tris.lit_rows)         # (`softras.kernels.light._phong_colors`' lit attributes by row)
     color32, depth, color_f = fb.color32, fb.depth, fb.color_f
     depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
     # At 1 or 4 samples an unlit draw without alpha test into RGBA8 shades
@@ -847,16 +853,16 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             if state.rgba32f:
                 pass                                  # (`_float_fragments` below)
             elif state.lit:
-                _phong_words(_whole_vectors(n), t, tris.colors, tris.lit, lf, li, lights, lighting, state.texture,
-                             state.mapped != NO_MAP)
+                _phong_words(_whole_vectors(n), t, tris.colors, (tris.lit, tris.lit_rows), lf, li, lights, lighting,
+                             state.texture, state.mapped != NO_MAP)
             elif not words:
                 _lane_words(_whole_vectors(n), t, tris.colors, lf, li, True, state.flat)
             if state.alpha_test:                          # (a discarded lane's coverage made 0)
                 _lane_alpha_test(n, t, tris.colors, lf, li, _LI_COV, state.texture, state.flat, state.cutoff)
                 _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
             if state.rgba32f:
-                _float_fragments(n, t, tris.colors, tris.lit, lf, li, lights, lighting, state, fb.color_f,
-                                 np.int64(count))
+                _float_fragments(n, t, tris.colors, (tris.lit, tris.lit_rows), lf, li, lights, lighting, state,
+                                 fb.color_f, np.int64(count))
             else:
                 _write_lanes(n, li, fb.color32, state.blend, count)
 

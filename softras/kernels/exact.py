@@ -171,16 +171,25 @@ def corner_values(clipped, tris: setup.TriangleSetup, mesh):
 
 @numba.njit(cache=True, error_model="numpy")
 def _corners(weights, source, indices, triangle, corner, values, out):
-    """out[t, k] = the clip weights of set-up corner k (row corner[t, k] of
-    weights[triangle[t]]) applied to the values of its source triangle's
-    vertices (indices[source[triangle[t]]]), as numpy's einsum
-    ``tkj,tjc->tkc`` sums them: from 0, j = 0, 1, 2 in order."""
+    """out[t, k] = the values at set-up corner k (row corner[t, k] of
+    weights[triangle[t]]) as `softras.pipeline.render.corner_values` takes
+    them: a corner's own vertex's values when one of its clip weights is
+    exactly 1 (the first such), else the clip weights applied to the values
+    of its source triangle's vertices (indices[source[triangle[t]]]), as
+    numpy's einsum ``tkj,tjc->tkc`` sums them: from 0, j = 0, 1, 2 in order."""
     for t in range(out.shape[0]):
         clipped = triangle[t]
         vertices = source[clipped]
         for k in range(3):
             row = corner[t, k]
+            own = -1
+            for j in range(2, -1, -1):
+                if weights[clipped, row, j] == 1.0:
+                    own = j
             for c in range(out.shape[2]):
+                if own >= 0:
+                    out[t, k, c] = values[indices[vertices, own], c]
+                    continue
                 total = 0.0
                 for j in range(3):
                     total += weights[clipped, row, j] * values[indices[vertices, j], c]
@@ -316,7 +325,7 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
     mesh, material = draw.mesh, draw.material
     corners = corner_values(clipped, tris, mesh)
     base = base_colors(scene, draw)                                    # straight, Gouraud lit
-    lit, lights, lighting = np.zeros((1, 3, 6)), *NO_LIGHTING[1:]
+    lit, lights, lighting = (np.zeros((0, 6)), np.zeros((1, 3), np.int64)), *NO_LIGHTING[1:]
     shading = {"flat": FLAT, "phong": PHONG}.get(material.shading, UNLIT)
     if shading == FLAT:                                                # (T', 3, 4): the colour at corner 0
         colors = flat_corner_colors(scene, draw, base, clipped.source[tris.triangle])
@@ -328,7 +337,9 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
                    vertex.world_normals(mesh.normals, draw.world, unit=False)]
         if map_name is not None:
             columns.append(vertex.world_tangents(mesh.tangents, draw.world))
-        lit = corners(np.concatenate(columns, axis=1))                  # (T', 3, 6), mapped (T', 3, 10)
+        at_corners = corners(np.concatenate(columns, axis=1))          # (T', 3, 6), mapped (T', 3, 10)
+        # (By row, as `softras.kernels.light._phong_colors` reads them: corner k of t in row 3 t + k.)
+        lit = (at_corners.reshape(-1, at_corners.shape[2]), np.arange(3 * len(at_corners)).reshape(-1, 3))
         lights, lighting = scene_lighting(scene, material)
     uv, (sampler, texels), (map_sampler, map_texels) = np.zeros((1, 3, 2)), NO_TEXTURE, NO_TEXTURE
     if material.texture is not None or map_name is not None:
@@ -344,7 +355,7 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
     c = np.ascontiguousarray
     _DRAW(c(tris.window), c(tris.inv_w), c(tris.edge_a), c(tris.edge_b), c(tris.edge_x0), c(tris.edge_y0),
           c(tris.edge_inclusive), c(tris.bbox), c(inputs.offsets, np.float64), float(inputs.unit),
-          c(inputs.positions, np.float64), shading, c(colors), c(lit), c(lights), tuple(lighting),
+          c(inputs.positions, np.float64), shading, c(colors), lit, c(lights), tuple(lighting),
           material.texture is not None, c(uv), sampler, texels.bytes, texels.levels, mapped, map_sampler,
           map_texels.bytes, map_texels.levels, float(material.bump_scale), color, depth,
           ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
@@ -651,12 +662,13 @@ def _make_draw(sources: str):
         sample positions in the pixel; shading: UNLIT, FLAT or PHONG; colors
         (T', 3, 4) straight corner colours (FLAT: the face's at corner 0, zeros
         at the others, `softras.kernels.light.flat_corner_colors`);
-        lit (T', 3, 6) corner world positions and normals (PHONG); lights and
+        lit = (values (3 T', 6), rows (T', 3)): the corner world positions and
+        normals (PHONG), corner k of t in row rows[t, k] (3 t + k); lights and
         lighting: `softras.kernels.light.scene_lighting`; whether textured,
         uv (T', 3, 2) the corners' (s, t), and the texture's sampler, texels
         and level table (`exact_sampler`);
         the normal or bump map (`mapped`: NO_MAP, NORMAL_MAP or BUMP_MAP, with
-        lit (T', 3, 10): the corner world tangents after the normals), its
+        lit's values (3 T', 10): the corner world tangents after the normals), its
         sampler, texels and table, and the bump scale (`_map_texels`); the depth function,
         depth write, blend code, and whether the alpha test with ``cutoff``
         applies.  Fragments outside the triangle's box are never made; each

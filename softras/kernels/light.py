@@ -24,7 +24,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix, _triple
+from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix
 from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW,
                                    _LF_W, _LI_WORD)
 from softras.kernels.pool import on_threads
@@ -92,8 +92,8 @@ def viewing(scene, draws) -> Viewing | None:
 
 
 def world_attributes(draw, out: np.ndarray, view: Viewing | None = None) -> np.ndarray:
-    """The draw's world positions and (not unit) world normals into out[:, 0:3]
-    and out[:, 3:6] (out (V, 6 or more) float64), `_world_attributes`, with
+    """The draw's world positions and (not unit) world normals into out[:V, 0:3]
+    and out[:V, 3:6] (out (V or more, 6 or more) float64), `_world_attributes`, with
     the normal rows of ``view`` where it has the draw's; returns out."""
     mesh = draw.mesh
     rows = view.normal_rows.get(id(draw)) if view is not None else None
@@ -108,22 +108,25 @@ def _fresh(name: str, shape: tuple, dtype) -> np.ndarray:
     return np.empty(shape, dtype)
 
 
-def phong_inputs(scene, draw, take=_fresh, view: Viewing | None = None) -> tuple[np.ndarray, np.ndarray, Lighting]:
+def phong_inputs(scene, draw, take=_fresh, view: Viewing | None = None,
+                 extra_rows: int = 0) -> tuple[np.ndarray, np.ndarray, Lighting]:
     """What a Phong-shaded triangle draw's kernels read: per vertex the
     world position and the (not unit) world normal (V, 6) float64, the
     inputs of `softras.pipeline.render.phong_attributes`, and for a normal
     or bump map the world tangent and handedness after them (V, 10,
-    `softras.pipeline.vertex.world_tangents`) (the set-up takes them to the
-    corners), and the scene's `light_table` and `Lighting`.  The (V, 6 or
-    10) array comes from ``take(name, shape, dtype)``: the tile drivers'
-    set-up passes a thread's reused buffers (`softras.kernels.scratch`).
-    view : the pass's `Viewing`, or None to find the eye and normal rows
-    here."""
+    `softras.pipeline.vertex.world_tangents`), and the scene's
+    `light_table` and `Lighting`.  The (V + extra_rows, 6 or 10) array
+    comes from ``take(name, shape, dtype)`` (the tile drivers' set-up
+    passes a thread's reused buffers, `softras.kernels.scratch`), its
+    rows past the vertices' left for the set-up to fill with the corners
+    the clipper makes (`softras.kernels.setup._lit_rows`).  view : the
+    pass's `Viewing`, or None to find the eye and normal rows here."""
     mesh, material = draw.mesh, draw.material
     mapped = material.normal_map is not None or material.bump_map is not None
-    out = world_attributes(draw, take("phong_inputs", (len(mesh.positions), 10 if mapped else 6), np.float64), view)
+    n = len(mesh.positions)
+    out = world_attributes(draw, take("phong_inputs", (n + extra_rows, 10 if mapped else 6), np.float64), view)
     if mapped:
-        out[:, 6:] = vertex.world_tangents(mesh.tangents, draw.world)
+        out[:n, 6:] = vertex.world_tangents(mesh.tangents, draw.world)
     return (out, *scene_lighting(scene, material, view))
 
 
@@ -158,6 +161,14 @@ def _dot(ax, ay, az, bx, by, bz):
     return (ax * bx + ay * by) + az * bz
 
 
+@numba.njit(cache=True, inline="always")
+def _lit_corners(values, r0, r1, r2, c):
+    """Value c of a triangle's three corners in a table of lit attributes
+    by row (`_phong_colors`: rows r0, r1, r2), as the 3-tuple `_mix`
+    weighs."""
+    return values[r0, c], values[r1, c], values[r2, c]
+
+
 @numba.njit(error_model="numpy", inline="always")
 def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
     """The straight Phong-lit colour of the n lanes of triangle t into the
@@ -165,12 +176,13 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
 
     Per lane, under its perspective weights (_LF_W rows): the straight
     colour (corner colours (T, 3, 4)), the world position and normal
-    (lit (T, 3, 6): corner positions, then corner normals, not unit)
     interpolated and the normal normalised
-    (`softras.pipeline.render.phong_attributes`); when ``mapped``, the
-    normal perturbed by the _LF_MAP rows' tangent-space normal in the frame
-    of the interpolated world tangent (lit (T, 3, 10): then corner tangents
-    and handedness, `_perturb`); then
+    (`softras.pipeline.render.phong_attributes`), from lit = (values (R,
+    6), rows (T, 3) int64): corner k's position, then its normal (not
+    unit), in row rows[t, k] of values (`_lit_corners`); when ``mapped``,
+    the normal perturbed by the _LF_MAP rows' tangent-space normal in the
+    frame of the interpolated world tangent (values (R, 10): then the
+    tangent and handedness, `_perturb`); then
     `softras.pipeline.fragment.blinn_phong` with the light table (L, _NL)
     and the `Lighting`.  In passes over the lanes, each of which compiles
     to SIMD: the interpolation; the perturbation; per light its vectors,
@@ -180,8 +192,12 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
     whole = _whole_exponent(shininess)
     cc = _corner_colors(colors, t)
-    px3, py3, pz3 = _triple(lit, t, 0), _triple(lit, t, 1), _triple(lit, t, 2)
-    nx3, ny3, nz3 = _triple(lit, t, 3), _triple(lit, t, 4), _triple(lit, t, 5)
+    values, rows = lit
+    r0, r1, r2 = rows[t, 0], rows[t, 1], rows[t, 2]
+    px3, py3, pz3 = _lit_corners(values, r0, r1, r2, 0), _lit_corners(values, r0, r1, r2, 1), \
+        _lit_corners(values, r0, r1, r2, 2)
+    nx3, ny3, nz3 = _lit_corners(values, r0, r1, r2, 3), _lit_corners(values, r0, r1, r2, 4), \
+        _lit_corners(values, r0, r1, r2, 5)
     for l in range(n):
         w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
         px, py, pz = _mix(w, px3), _mix(w, py3), _mix(w, pz3)
@@ -195,7 +211,8 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
         lf[_LF_LIT + 2, l] = ambient * _mix(w, cc.b)
         lf[_LF_LIT + 3, l] = _mix(w, cc.a)
     if mapped:
-        tx3, ty3, tz3, tw3 = _triple(lit, t, 6), _triple(lit, t, 7), _triple(lit, t, 8), _triple(lit, t, 9)
+        tx3, ty3, tz3, tw3 = (_lit_corners(values, r0, r1, r2, 6), _lit_corners(values, r0, r1, r2, 7),
+                              _lit_corners(values, r0, r1, r2, 8), _lit_corners(values, r0, r1, r2, 9))
         for l in range(n):
             w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
             lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l] = _perturb(

@@ -5,8 +5,9 @@ transform with llvmpipe's fused multiply-add, 1/256 snapping, area and
 culling, counter-clockwise corner order, integer edge functions, fill rule,
 pixel bounding box), the depth plane of
 `softras.pipeline.interpolate.depth_at_samples`, and the attributes at the
-corners of `softras.pipeline.render.corner_values` (clip weights x source
-vertex values, in the pipeline's order), in one compiled pass over the
+corners of `softras.pipeline.render.corner_values` (a vertex's values, or
+for a vertex the clipper made the clip weights x source vertex values, in
+the pipeline's order), in one compiled pass over the
 triangles that `softras.pipeline.clip.triangle_list_gl` lists.
 
 The set-up triangles are two tables, one row per clipped triangle (layouts
@@ -56,9 +57,12 @@ Clipped = namedtuple("Clipped", ["indices", "source", "slot", "fan_clip", "fan_w
 # float64 and i (T, _NI) int64 (layouts above), pixel box bbox (T, 4) int64
 # (x0, x1, y0, y1 inclusive), corner colours (T, 3, 4), corner uvs (T, 3,
 # 2), or (1, 3, 2) unused when the draw is untextured, and for Phong shading
-# the corner world positions and (not unit) world normals (T, 3, 6), or
-# (1, 3, 6) unused.
-Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit"])
+# the lit attributes by row: lit (V + 3 F, 6, or 10 with a normal or bump
+# map) the world positions, (not unit) world normals (and tangents) of the
+# vertices, then of the corners the clipper makes, and lit_rows (T, 3)
+# int64 each corner's row (`_lit_rows`), else lit (0, 6) and lit_rows
+# (1, 3) unused.
+Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit", "lit_rows"])
 
 
 def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, scratch, bins) -> np.ndarray:
@@ -154,7 +158,8 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
     Fills their rows of tris (the `Triangles` as a plain tuple): f, i, bbox, and the corner
     attributes (`_corner_values`) of vertex_values = (vertex colours (V, 4),
     vertex uvs (V, 2) or (0, 2) when untextured, world positions and
-    normals (V, 6) or (0, 6) when not Phong-shaded); the rows of the
+    normals (V + 3 F, 6 or 10: the same array as tris' lit) or (0, 6) when
+    not Phong-shaded, by row (`_lit_rows`)); the rows of the
     triangles that the pipeline drops (zero area, culled, empty box) are
     left as they were.
 
@@ -168,7 +173,7 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
     """
     vertex_f, vertex_i = window
     indices, source, slot, fan_clip, fan_weights = clipped
-    tri_f, tri_i, bbox, corner_colors, corner_uvs, corner_lit = tris
+    tri_f, tri_i, bbox, corner_colors, corner_uvs, _, lit_rows = tris
     vertex_colors, vertex_uvs, vertex_lit = vertex_values
     min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
     min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
@@ -249,7 +254,7 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
         if vertex_uvs.shape[0]:
             _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP])
         if vertex_lit.shape[0]:
-            _corner_values(vertex_lit, corner_lit, t, clipped, tri_i[t, _I_SWAP])
+            _lit_rows(vertex_lit, vertex_colors.shape[0], lit_rows, t, clipped, tri_i[t, _I_SWAP])
     return n_visible, pixels
 
 
@@ -267,17 +272,68 @@ def _depth_slopes(wx, wy, wz):
 @numba.njit(cache=True, inline="always")
 def _corner_values(values, out, t, clipped, swapped):
     """`softras.pipeline.render.corner_values`: the attributes at set-up
-    triangle t's corners, out[t] (3, K), from the vertex values (V, K), as its
-    ``einsum("tkj,tjc->tkc", w, values[vertices])`` with the clip weights (identity for a passed-through
-    triangle) in set-up corner order and the same sum order."""
+    triangle t's corners, out[t] (3, K), from the vertex values (V, K), in
+    set-up corner order: a corner the clipper passed through its vertex's
+    values as they are, a corner it made the weighted sum of
+    `_made_corner` (`_own_vertex` tells them apart)."""
     indices, source, slot, _, fan_weights = clipped
-    i0, i1, i2 = indices[source[t], 0], indices[source[t], 1], indices[source[t], 2]
+    for k in range(3):
+        row = 1 - k if swapped and k < 2 else k
+        own = _own_vertex(slot[t], fan_weights, row)
+        if own >= 0:
+            v = indices[source[t], own]
+            for c in range(values.shape[1]):
+                out[t, k, c] = values[v, c]
+        else:
+            for c in range(values.shape[1]):
+                out[t, k, c] = _made_corner(values, indices, source[t], fan_weights, slot[t], row, c)
+
+
+@numba.njit(cache=True, inline="always")
+def _lit_rows(values, n_vertices, rows, t, clipped, swapped):
+    """The rows of a Phong draw's lit attributes, values (V + 3 F, K): the
+    vertices' (V) from `softras.kernels.light.phong_inputs`, then three for
+    each fan triangle f of the clipper.  Sets rows[t] (3,) int64 to the row
+    of set-up triangle t's corner k (set-up corner order): a corner the
+    clipper passed through its vertex's row, a corner it made row V + 3 f +
+    k, filled here with `_made_corner`'s values (each fan triangle is one
+    set-up triangle's: no other thread writes the row).  The values the
+    drivers read at the corners are `_corner_values`', without a copy of
+    the vertices' for every triangle (the copies were a quarter of the
+    71k-triangle scan's set-up time; docs/speed.md, "Forty-eighth round")."""
+    indices, source, slot, _, fan_weights = clipped
     f = slot[t]
     for k in range(3):
         row = 1 - k if swapped and k < 2 else k
-        if f < 0:
-            w0, w1, w2 = (1.0 if row == 0 else 0.0), (1.0 if row == 1 else 0.0), (1.0 if row == 2 else 0.0)
+        own = _own_vertex(f, fan_weights, row)
+        if own >= 0:
+            rows[t, k] = indices[source[t], own]
         else:
-            w0, w1, w2 = fan_weights[f, row, 0], fan_weights[f, row, 1], fan_weights[f, row, 2]
-        for c in range(values.shape[1]):
-            out[t, k, c] = w0 * values[i0, c] + w1 * values[i1, c] + w2 * values[i2, c]
+            r = n_vertices + 3 * f + row
+            rows[t, k] = r
+            for c in range(values.shape[1]):
+                values[r, c] = _made_corner(values, indices, source[t], fan_weights, f, row, c)
+
+
+@numba.njit(cache=True, inline="always")
+def _own_vertex(f, fan_weights, row):
+    """Which vertex (0, 1, 2) of its source triangle a set-up corner is
+    when the clipper passed it through, else -1: corner ``row`` of a
+    passed-through triangle (f < 0) is vertex ``row``; a fan triangle f's
+    is the vertex of clip weight exactly 1, if any
+    (`softras.pipeline.clip.ClippedTriangles.generated`)."""
+    if f < 0:
+        return row
+    w0, w1, w2 = fan_weights[f, row, 0], fan_weights[f, row, 1], fan_weights[f, row, 2]
+    return 0 if w0 == 1.0 else 1 if w1 == 1.0 else 2 if w2 == 1.0 else -1
+
+
+@numba.njit(cache=True, inline="always")
+def _made_corner(values, indices, source_t, fan_weights, f, row, c):
+    """Value c at corner ``row`` of fan triangle f, a corner the clipper
+    made: `softras.pipeline.render.corner_values`' ``einsum("tkj,tjc->tkc",
+    w, values[vertices])`` with its clip weights w, in the same sum order
+    (from 0: a -0 sum comes back +0)."""
+    i0, i1, i2 = indices[source_t, 0], indices[source_t, 1], indices[source_t, 2]
+    return (((0.0 + fan_weights[f, row, 0] * values[i0, c]) + fan_weights[f, row, 1] * values[i1, c])
+            + fan_weights[f, row, 2] * values[i2, c])

@@ -72,14 +72,24 @@ def corner_values(clipped, tris, mesh):
 
     Returns source (T', 3): the mesh vertex indices of each set-up
     triangle's source triangle, and corners(values): (N, K) per-vertex values
-    -> (T', 3, K) at the corners, the clip weights (reordered like the
-    corners) applied to the source triangle's vertex values.
+    -> (T', 3, K) at the corners.  A corner the clipper passed through (a
+    clip weight exactly 1, `softras.pipeline.clip.ClippedTriangles.generated`)
+    takes its vertex's values as they are; a corner the clipper made, the
+    clip weights (reordered like the corners) applied to the source
+    triangle's vertex values (GL 4.5 core, section 13.5.1: the clipper
+    interpolates the outputs of the vertices it makes, and only those; a
+    weighted sum for every corner would turn a vertex's -0 into +0, and
+    another vertex's infinity into NaN, through the zero weights).
     """
     weights = np.take_along_axis(clipped.weights[tris.triangle], tris.corner[..., None], axis=1)
     source = mesh.indices[clipped.source[tris.triangle]]                # (T', 3)
+    passed = weights.max(axis=2) == 1.0                                 # (T', 3)
+    own = np.take_along_axis(source, weights.argmax(axis=2), axis=1)[passed]
 
     def corners(values: np.ndarray) -> np.ndarray:
-        return np.einsum("tkj,tjc->tkc", weights, values[source])
+        out = np.einsum("tkj,tjc->tkc", weights, values[source])
+        out[passed] = values[own]
+        return out
 
     return source, corners
 
