@@ -392,8 +392,8 @@ def test_phong_colors_are_the_stages_to_the_bit():
         lf = np.zeros((k_lanes._NLF, 2 * n))
         lf[k_lanes._LF_W:k_lanes._LF_W + 3, :n] = persp.T
         table, lighting = k_light.light_table(lights, eye, material)
-        lit = (np.concatenate([world, normals], axis=1), np.array([[0, 1, 2]]))     # (corner k in row k)
-        phong_colors(n, 0, base[None], lit, lf, table, tuple(lighting), False)
+        lit, lit_rows = np.concatenate([world, normals], axis=1), np.array([[0, 1, 2]])     # (corner k in row k)
+        phong_colors(n, 0, base[None], lit, lit_rows, lf, table, tuple(lighting), False)
         got = lf[k_lanes._LF_LIT:k_lanes._LF_LIT + 4, :n].T
         assert np.array_equal(got[:, :3].view(np.int64), expected.view(np.int64)), f"shininess {shininess}"
         assert np.array_equal(got[:, 3], colors[:, 3])

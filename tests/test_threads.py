@@ -210,3 +210,28 @@ def test_a_batch_takes_two_threads_where_its_work_outweighs_the_hand_off(name, e
         decided.clear()
         softras.render(scene)
         assert decided and set(decided) == {want}, decided
+
+
+def test_a_kernel_that_asks_for_an_aligned_stack_aligns_it():
+    """`threads._aligned_stack` gives its caller LLVM's alignstack(64): the
+    compiled function starts by rounding its stack pointer down to 64
+    bytes (``and $-64, %rsp``), and a function without it does not.  (The
+    attribute is lost if llvmlite is not made to write it: it writes a
+    function's attributes only beside a named one.)"""
+    import numba
+
+    @numba.njit
+    def aligned(a):
+        threads._aligned_stack()
+        return a.sum()
+
+    @numba.njit
+    def plain(a):
+        return a.sum()
+
+    asm = {}
+    for name, f in (("aligned", aligned), ("plain", plain)):
+        f(np.ones(4))
+        asm[name] = f.inspect_asm(f.signatures[0])
+    assert "andq\t$-64, %rsp" in asm["aligned"]
+    assert "andq\t$-64, %rsp" not in asm["plain"]

@@ -113,7 +113,7 @@ from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI,
                                    Triangles, _setup, window_buffers)
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.pool import on_threads
-from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _owns
+from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _aligned_stack, _owns
 from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Sampler, Texels,
                                      _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _lanes_nearest_fixed,
@@ -575,6 +575,7 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         (`softras.kernels.setup.Clipped`) and are named again here.
         """
         stamp = sources                 # noqa: F841  (a closure variable: the cache key, `softras.kernels.stamp`)
+        _aligned_stack()                # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
         n_tiles = bins[0].shape[0] - 1
         count = n_samples if n_samples != ANY_SAMPLES else samples[0].shape[0]
         # (One statement each: a tuple of records, built and unpacked,
@@ -652,7 +653,7 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
     offsets, positions = samples.offsets, samples.positions
     bin_start, bin_tri = bins.start, bins.tri
     tri_f, tri_i, bbox, colors, uv = tris.f, tris.i, tris.bbox, tris.colors, tris.uv
-    lit = (tris.lit, tris.lit_rows)         # (`softras.kernels.light._phong_colors`' lit attributes by row)
+    lit, lit_rows = tris.lit, tris.lit_rows
     color32, depth, color_f = fb.color32, fb.depth, fb.color_f
     depths = depth.reshape(-1)              # (a view: a pixel's samples one after another)
     # At 1 or 4 samples an unlit draw without alpha test into RGBA8 shades
@@ -703,8 +704,8 @@ def _flat_tile(tile, bins, tris, samples, fb, state, lights, lighting, lanes, n_
                     continue
             elif n_flat == 0:
                 break
-            _flat_block(n_flat, t, tri_f, colors, uv, lit, positions, depth, depths, color32, color_f, state,
-                        lights, lighting, lf, li, n_samples)
+            _flat_block(n_flat, t, tri_f, colors, uv, lit, lit_rows, positions, depth, depths, color32, color_f,
+                        state, lights, lighting, lf, li, n_samples)
             n_flat = 0
 
 
@@ -853,7 +854,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
             if state.rgba32f:
                 pass                                  # (`_float_fragments` below)
             elif state.lit:
-                _phong_words(_whole_vectors(n), t, tris.colors, (tris.lit, tris.lit_rows), lf, li, lights, lighting,
+                _phong_words(_whole_vectors(n), t, tris.colors, tris.lit, tris.lit_rows, lf, li, lights, lighting,
                              state.texture, state.mapped != NO_MAP)
             elif not words:
                 _lane_words(_whole_vectors(n), t, tris.colors, lf, li, True, state.flat)
@@ -861,7 +862,7 @@ def _textured_tile(tile, bins, tris, samples, fb, state, sampler, tex, map_sampl
                 _lane_alpha_test(n, t, tris.colors, lf, li, _LI_COV, state.texture, state.flat, state.cutoff)
                 _depth_test_lanes(n, li, depth, depths, depth_func, write_z, count)
             if state.rgba32f:
-                _float_fragments(n, t, tris.colors, (tris.lit, tris.lit_rows), lf, li, lights, lighting, state,
+                _float_fragments(n, t, tris.colors, tris.lit, tris.lit_rows, lf, li, lights, lighting, state,
                                  fb.color_f, np.int64(count))
             else:
                 _write_lanes(n, li, fb.color32, state.blend, count)
@@ -879,7 +880,7 @@ def _textured_tile_called(tile, bins, tris, samples, fb, state, sampler, tex, ma
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32, color_f, state, lights,
+def _flat_block(n, t, tri_f, colors, uv, lit, lit_rows, positions, depth, depths, color32, color_f, state, lights,
                 lighting, lf, li, n_samples):
     """`softras.pipeline.ops.apply_fragments` of an untextured triangle's
     fragments (`softras.pipeline.fragment.shade_unlit` colours), as
@@ -946,10 +947,10 @@ def _flat_block(n, t, tri_f, colors, uv, lit, positions, depth, depths, color32,
     if not state.alpha_test and not state.flat:
         _lane_weights(_whole_vectors(kept), t, tri_f, lf, uv, False)
     if state.rgba32f:
-        _float_fragments(kept, t, colors, lit, lf, li, lights, lighting, state, color_f, np.int64(n_samples))
+        _float_fragments(kept, t, colors, lit, lit_rows, lf, li, lights, lighting, state, color_f, np.int64(n_samples))
         return
     if state.lit:
-        _phong_words(_whole_vectors(kept), t, colors, lit, lf, li, lights, lighting, False, False)
+        _phong_words(_whole_vectors(kept), t, colors, lit, lit_rows, lf, li, lights, lighting, False, False)
     else:
         _lane_words(_whole_vectors(kept), t, colors, lf, li, False, state.flat)
     _write_lanes(kept, li, color32, state.blend, n_samples)

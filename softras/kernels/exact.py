@@ -521,7 +521,7 @@ def _make_phong(sources: str):
         function of its own: inlined into `_draw`'s parallel loop, numba's
         array analysis fails on it."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
-        _phong_colors(k, t, colors, lit, lf, lights, lighting, mapped)
+        _phong_colors(k, t, colors, lit[0], lit[1], lf, lights, lighting, mapped)
 
     return _phong
 

@@ -28,6 +28,7 @@ from softras.kernels.interpolate import RGBA, _color_word, _corner_colors, _mix
 from softras.kernels.lanes import (_LF_LIT, _LF_MAP, _LF_NDL, _LF_NRM, _LF_POS, _LF_SPEC, _LF_TEX, _LF_VIEW,
                                    _LF_W, _LI_WORD)
 from softras.kernels.pool import on_threads
+from softras.kernels.threads import _aligned_stack
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import fragment, libm, vertex
 from softras.pipeline import ops as ops_stage
@@ -170,19 +171,19 @@ def _lit_corners(values, r0, r1, r2, c):
 
 
 @numba.njit(error_model="numpy", inline="always")
-def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
+def _phong_colors(n, t, colors, lit, lit_rows, lf, lights, lighting, mapped):
     """The straight Phong-lit colour of the n lanes of triangle t into the
     _LF_LIT rows (r, g, b lit, a interpolated).
 
     Per lane, under its perspective weights (_LF_W rows): the straight
     colour (corner colours (T, 3, 4)), the world position and normal
     interpolated and the normal normalised
-    (`softras.pipeline.render.phong_attributes`), from lit = (values (R,
-    6), rows (T, 3) int64): corner k's position, then its normal (not
-    unit), in row rows[t, k] of values (`_lit_corners`); when ``mapped``,
-    the normal perturbed by the _LF_MAP rows' tangent-space normal in the
-    frame of the interpolated world tangent (values (R, 10): then the
-    tangent and handedness, `_perturb`); then
+    (`softras.pipeline.render.phong_attributes`), from lit (R, 6) by
+    row: corner k's position, then its normal (not unit), in row
+    lit_rows[t, k] (lit_rows (T, 3) int64, `_lit_corners`); when
+    ``mapped``, the normal perturbed by the _LF_MAP rows' tangent-space
+    normal in the frame of the interpolated world tangent (lit (R, 10):
+    then the tangent and handedness, `_perturb`); then
     `softras.pipeline.fragment.blinn_phong` with the light table (L, _NL)
     and the `Lighting`.  In passes over the lanes, each of which compiles
     to SIMD: the interpolation; the perturbation; per light its vectors,
@@ -192,8 +193,8 @@ def _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped):
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
     whole = _whole_exponent(shininess)
     cc = _corner_colors(colors, t)
-    values, rows = lit
-    r0, r1, r2 = rows[t, 0], rows[t, 1], rows[t, 2]
+    values = lit
+    r0, r1, r2 = lit_rows[t, 0], lit_rows[t, 1], lit_rows[t, 2]
     px3, py3, pz3 = _lit_corners(values, r0, r1, r2, 0), _lit_corners(values, r0, r1, r2, 1), \
         _lit_corners(values, r0, r1, r2, 2)
     nx3, ny3, nz3 = _lit_corners(values, r0, r1, r2, 3), _lit_corners(values, r0, r1, r2, 4), \
@@ -284,14 +285,14 @@ def _make_phong_words(sources: str):
     a variant (docs/speed.md, "Forty-second round")."""
 
     @numba.njit(cache=True, error_model="numpy")
-    def _phong_words(n, t, colors, lit, lf, li, lights, lighting, textured, mapped):
+    def _phong_words(n, t, colors, lit, lit_rows, lf, li, lights, lighting, textured, mapped):
         """The fragment colour of the n lanes of triangle t, Phong-shaded (with
         the normal or bump map's normals of the _LF_MAP rows when ``mapped``), as
         llvmpipe's bytes: the lit colour (`_phong_colors`) times the _LF_TEX
         texel when textured (`softras.kernels.interpolate._color_word`), one
         RGBA8 word each into the _LI_WORD row."""
         stamp = sources                 # noqa: F841  (the cache key)
-        _phong_colors(n, t, colors, lit, lf, lights, lighting, mapped)
+        _phong_colors(n, t, colors, lit, lit_rows, lf, lights, lighting, mapped)
         for l in range(n):
             texel = RGBA(1.0, 1.0, 1.0, 1.0)
             if textured:
@@ -375,6 +376,7 @@ def _make_lighting_loops(sources: str):
         `softras.kernels.pool.on_threads`).  A scan's 36k vertices in 0.64
         ms on two threads against 0.92 a vertex at a time, each vertex's
         lighting one call."""
+        _aligned_stack()                # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
         stamp = sources                 # noqa: F841  (the cache key)
         n = base.shape[0]
         chunks = (n + POINT_CHUNK - 1) // POINT_CHUNK

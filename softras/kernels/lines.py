@@ -43,7 +43,7 @@ from softras.kernels.pool import on_threads
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.setup import _window_corner
 from softras.kernels.stamp import sources_stamp
-from softras.kernels.threads import NoAliasCompiler, _unowned
+from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _unowned
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
@@ -164,6 +164,7 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
     `LineTable`'s arrays one by one (numba's parallel loop dropped this
     loop as dead when they came as a record built in it, when the passes
     were one)."""
+    _aligned_stack()                    # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
     end_clip = np.empty((1, 2, 4))
     weights = np.empty((1, 2, 2))
     generated = np.empty((1, 2), np.bool_)
@@ -193,6 +194,7 @@ def _cover_lines(r, n_threads, material, offsets, positions, rectangular, shift,
     copies: with it a flag at run time, the RGBA8 loop (the rgba32f
     writes beside it) took 1.31-1.37 ms on one thread for lines_8k_512's
     coverage, against 1.15-1.19 (docs/speed.md, "Forty-seventh round")."""
+    _aligned_stack()                    # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
     if rgba32f:
         _cover_lines_into(r, n_threads, material, offsets, positions, rectangular, shift, color32, color_f, True,
                           depth, depth_func, write_z, blend, table)

@@ -49,7 +49,7 @@ def _make_float_fragments(sources: str):
     (`softras.kernels.stamp.sources_stamp`, a closure variable)."""
 
     @numba.njit(cache=True, error_model="numpy")
-    def _float_fragments(n, t, colors, lit, lf, li, lights, lighting, state, color_f, n_samples):
+    def _float_fragments(n, t, colors, lit, lit_rows, lf, li, lights, lighting, state, color_f, n_samples):
         """Shade the n lanes of triangle t and apply them to the rgba32f
         buffer color_f (H, W, S, 4) float32: each lane's straight colour
         into the _LF_LIT rows (Phong-lit by `_phong_colors` when
@@ -61,13 +61,13 @@ def _make_float_fragments(sources: str):
         ``(r a) texel_r``, ``a texel_a``), then written to the lane's
         passed samples (_LI_PASS) with the draw's blend (`_write_floats`).
 
-        lit, lights, lighting as `softras.kernels.light._phong_words`;
+        lit, lit_rows, lights, lighting as `softras.kernels.light._phong_words`;
         state the draw's `softras.kernels.draw.DrawState`; n_samples the
         buffer's samples (an int64)."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
         m = _whole_vectors(n)           # (the colours over whole vectors, `softras.kernels.lanes.VECTOR`)
         if state.lit:
-            _phong_colors(m, t, colors, lit, lf, lights, lighting, state.mapped != 0)
+            _phong_colors(m, t, colors, lit, lit_rows, lf, lights, lighting, state.mapped != 0)
         elif state.flat:
             for l in range(m):
                 for c in range(4):

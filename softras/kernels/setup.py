@@ -28,6 +28,7 @@ import numba
 import numpy as np
 
 from softras.kernels.pool import on_threads
+from softras.kernels.threads import _aligned_stack
 from softras.pipeline import setup as setup_stage
 
 # Per set-up triangle, float64 row of `tri_f`: window x (3), y (3), z (3),
@@ -171,6 +172,7 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
     touch.  Returns n and the sum of their boxes' pixels (the draw's work,
     `softras.kernels.draw.shares`).
     """
+    _aligned_stack()                    # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
     vertex_f, vertex_i = window
     indices, source, slot, fan_clip, fan_weights = clipped
     tri_f, tri_i, bbox, corner_colors, corner_uvs, _, lit_rows = tris

@@ -77,6 +77,30 @@ def _unowned(typingctx, array):
     return array(array), codegen
 
 
+@intrinsic
+def _aligned_stack(typingctx):
+    """Makes the compiled function that calls it align its stack to 64
+    bytes when it starts (LLVM's ``alignstack(64)``).  LLVM keeps the
+    AVX-512 registers a loop runs out of in 64-byte stack slots; the
+    stack as a thread's caller leaves it is only 16-byte aligned, so
+    without this the slots are placed at 16-byte offsets and, by where a
+    thread's stack happens to stand, a slot can straddle two cache lines,
+    its every store and load split in two.  A tile driver's share on the
+    pool's thread drew blended_8x128_512's batch in 6.15-6.68 ms against
+    5.15-5.35 ms from any other depth of its thread's stack, or on the
+    calling thread (docs/speed.md, "Forty-eighth round"): which thread
+    lost depended on the code's frame, not on the code's speed."""
+    def codegen(context, builder, signature, args):
+        builder.function.attributes.alignstack = 64
+        # (llvmlite writes a function's attributes only when its set holds
+        # a named one; nounwind is true of numba's functions, which return
+        # their errors.)
+        builder.function.attributes.add("nounwind")
+        return context.get_dummy_value()
+
+    return types.none(), codegen
+
+
 # The tile owners of a batch drawn by one share (`_owns`): none, every tile is that share's.
 ONE_SHARE = np.zeros(0, np.int64)
 
