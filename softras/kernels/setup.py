@@ -74,8 +74,8 @@ def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris,
     n_shares runs of the triangles.  clip_pos : the mesh's vertices in clip
     space (V, 4); clipped : the `Clipped` list; vertex_values : (vertex
     colours (V, 4), vertex uvs (V, 2) or (0, 2) when untextured, vertex
-    world positions and normals (V, 6) or (0, 6) when not Phong-shaded);
-    tris : the `Triangles` to fill; scratch : the caller's reused buffers
+    world positions and normals (V + 3 F, 6 or 10: tris' lit) or (0, 6)
+    when not Phong-shaded); tris : the `Triangles` to fill; scratch : the caller's reused buffers
     (`softras.kernels.draw._Scratch`), for the per-vertex tables; bins :
     (listed (T,) int64, counts (S, tiles + 1) int64 zeros with S at least
     the thread count, tiles_x), share r's visible triangles listed from
@@ -297,8 +297,9 @@ def _lit_rows(values, n_vertices, rows, t, clipped, swapped):
     vertices' (V) from `softras.kernels.light.phong_inputs`, then three for
     each fan triangle f of the clipper.  Sets rows[t] (3,) int64 to the row
     of set-up triangle t's corner k (set-up corner order): a corner the
-    clipper passed through its vertex's row, a corner it made row V + 3 f +
-    k, filled here with `_made_corner`'s values (each fan triangle is one
+    clipper passed through its vertex's row, corner j of fan triangle f
+    that the clipper made row V + 3 f + j, filled here with
+    `_made_corner`'s values (each fan triangle is one
     set-up triangle's: no other thread writes the row).  The values the
     drivers read at the corners are `_corner_values`', without a copy of
     the vertices' for every triangle (the copies were a quarter of the
