@@ -226,6 +226,13 @@ MUTATIONS: tuple[Mutation, ...] = (
        "another vertex's infinity makes NaN)",
        E("softras/pipeline/render.py", "        out[passed] = values[own]\n", ""),
        ("tests/test_exact_path.py", FAST)),
+    _m("line_ends_kept_summed", "lines", "shared",
+       "a line end the clipper kept takes the clip weights' sum too (-0 comes back +0, the other end's "
+       "infinity makes NaN)",
+       E("softras/pipeline/lines.py",
+         "    ends = np.where(clipped.generated[..., None], made, at)      # (end k of a kept line: vertex k)\n",
+         "    ends = made\n"),
+       (FAST, "tests/stages/test_lines.py")),
     _m("glref_noperspective", "interpolate", "glref",
        "glref's shaders interpolate the vertex colour with noperspective",
        (E("shaders/unlit.vert", "out vec4 v_color;", "noperspective out vec4 v_color;"),

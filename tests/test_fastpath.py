@@ -906,6 +906,47 @@ def test_corner_values_are_the_stages_with_signed_zeros_and_infinities():
         assert np.array_equal(np.signbit(got[kept_here]), np.signbit(values[own[kept_here]]))
 
 
+def test_line_end_values_are_the_stages_with_signed_zeros_and_infinities():
+    """The gl line kernel's end values (`k_lines` set-up pass, the
+    `LineTable`'s ends) are `softras.pipeline.lines.rasterized_lines`' bit
+    for bit on lines across the clip planes, with -0, infinities and NaN
+    among the vertex colours: an end the clipper kept takes its vertex's
+    values as they are (-0 stays -0, the other end's infinity stays out),
+    an end it made the weighted sum."""
+    from softras.kernels.scratch import read_only
+    from softras.pipeline import lines as lines_stage
+    from softras.pipeline.clip import _plane_distances
+    rng = np.random.default_rng(8)
+    n, width, height = 80, 64, 48
+    clip = rng.uniform(-1.6, 1.6, size=(n, 4))
+    clip[:, 3] = rng.uniform(0.5, 1.5, size=n)
+    clip = clip.astype(np.float32).astype(np.float64)
+    indices = rng.integers(0, n, size=(120, 2))
+    values = rng.uniform(0, 1, size=(n, 4))
+    values[::3] = -0.0
+    values[1::7, 1] = np.inf
+    values[2::11, 2] = np.nan
+    with np.errstate(invalid="ignore"):
+        clipped = lines_stage.clip_lines(clip, indices, precision="gl", policy="llvmpipe", width=width,
+                                         height=height)
+        *_, expected = lines_stage.rasterized_lines(clip, indices, width, height, values=values,
+                                                    sample_positions=np.array([[0.5, 0.5]]))
+    assert clipped.generated.any() and not clipped.generated.all()
+    c, finite, planes = lines_stage.clip_inputs(clip, "gl", "llvmpipe", width, height)
+    m = len(indices)
+    table = k_lines.LineTable(np.zeros(m, np.bool_), np.zeros((m, 4)), np.zeros((m, 4)), np.zeros((m, 4), np.int64),
+                              np.zeros((m, 2, 3)), np.zeros((m, 2)), np.zeros((m, 2, 4)))
+    k_lines._SET_UP_LINES(0, 1, c, _plane_distances(c, planes), finite, read_only(indices, np.int64),
+                          read_only(values, np.float64), False, width, height, *table)
+    got = table.ends[clipped.source]
+    assert np.array_equal(expected, got, equal_nan=True)
+    assert np.array_equal(np.signbit(expected), np.signbit(got))
+    kept = ~clipped.generated
+    vertex_values = values[indices[clipped.source]]
+    assert np.array_equal(got[kept], vertex_values[kept], equal_nan=True)
+    assert np.array_equal(np.signbit(got[kept]), np.signbit(vertex_values[kept]))
+
+
 def test_reused_scratch_buffers_do_not_leak_between_renders():
     """Set-up tables, corner attributes, depth and (render_scene's) colour live
     in reused buffers: a big scene, a small one, then the big one again give

@@ -43,8 +43,8 @@ from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, rasterize
 from softras.pipeline import render as stages
 from softras.pipeline.clip import _plane_distances
-from softras.pipeline.lines import (FIXED_ONE, _clip_line, _line_t, _pixel_mask, _quad_planes, _quad_rows,
-                                    _row_span, _sample_t, _setup_line)
+from softras.pipeline.lines import (FIXED_ONE, _clip_line, _end_values, _line_t, _pixel_mask, _quad_planes,
+                                    _quad_rows, _row_span, _sample_t, _setup_line)
 from softras.pipeline.rasterize import _sample_box
 
 # Rows of the picture a thread covers at once (thread r of n: bands r, r + n, ...).
@@ -144,8 +144,7 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
             inv_w[line, e] = oow
             for k in range(3):
                 window[line, e, k] = end_clip[0, e, k] * oow * scale[k] + scale[k]
-            for k in range(4):
-                ends[line, e, k] = weights[0, e, 0] * values[i0, k] + weights[0, e, 1] * values[i1, k]
+            _end_values(values, i0, i1, e, weights, generated, ends[line])
         drawn[line] = _setup_line(window[line, 0, 0], window[line, 0, 1], window[line, 1, 0], window[line, 1, 1],
                                   rectangular, pixel_offset, False, qx[line], qy[line])
 

@@ -49,8 +49,8 @@ from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, vertex
 from softras.pipeline import rasterize
 from softras.pipeline.clip import _plane_distances
-from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _line_t, _pixel_mask, _quad_planes,
-                                    _quad_rows, _row_span, _sample_t, _setup_line)
+from softras.pipeline.lines import (FIXED_ONE, _binned_region, _clip_line, _end_values, _line_t, _pixel_mask,
+                                    _quad_planes, _quad_rows, _row_span, _sample_t, _setup_line)
 from softras.pipeline.rasterize import _sample_box
 from softras.pipeline.render import vertex_colors
 
@@ -180,8 +180,7 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
             (window[line, e, 0], window[line, e, 1], window[line, e, 2], inv_w[line, e],
              _, _) = _window_corner(end_clip[0, e, 0], end_clip[0, e, 1], end_clip[0, e, 2], end_clip[0, e, 3],
                                     not generated[0, e], width, height)
-            for k in range(4):
-                ends[line, e, k] = weights[0, e, 0] * values[i0, k] + weights[0, e, 1] * values[i1, k]
+            _end_values(values, i0, i1, e, weights, generated, ends[line])
         drawn[line] = (_setup_line(window[line, 0, 0], window[line, 0, 1], window[line, 1, 0], window[line, 1, 1],
                                    rectangular, pixel_offset, True, qx[line], qy[line])
                        and _binned_region(qx[line], qy[line], 0, rectangular, width, height, region[line]))

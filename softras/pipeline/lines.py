@@ -937,6 +937,20 @@ class LineFragments:
         return len(self.fragments)
 
 
+@numba.njit(cache=True, inline="always")
+def _end_values(values, i0, i1, e, weights, generated, out):
+    """`rasterized_lines`' values at end e of a clipped line into out[e]
+    (out (2, K)): an end the clipper kept (not ``generated[0, e]``) vertex
+    e's values (of i0, i1) as they are, an end it made the clip weights
+    (weights[0, e]) x the two vertices' values.  For the line kernels
+    (`softras.kernels.lines`, `softras.kernels.exact_lines`)."""
+    for k in range(out.shape[1]):
+        if generated[0, e]:
+            out[e, k] = weights[0, e, 0] * values[i0, k] + weights[0, e, 1] * values[i1, k]
+        else:
+            out[e, k] = values[i0 if e == 0 else i1, k]
+
+
 def rasterized_lines(clip: np.ndarray, indices: np.ndarray, width: int, height: int, *,
                      values: np.ndarray, precision: str = "gl", sample_positions: np.ndarray,
                      policy: str | None = None):
@@ -944,8 +958,10 @@ def rasterized_lines(clip: np.ndarray, indices: np.ndarray, width: int, height: 
 
     Returns (fragments, t, window (L, 2, 3), inv_w (L, 2), ends (L, 2, K)):
     `rasterize_lines`' fragments and t, then per clipped line its end
-    points' window coordinates and 1/w and the values at its end points
-    (clip weights x the source vertices' values).  Arguments as
+    points' window coordinates and 1/w and the values at its end points:
+    an end the clipper kept its vertex's values as they are, an end it
+    made the clip weights x the source vertices' values (as a triangle's
+    corners, `softras.pipeline.render.corner_values`).  Arguments as
     `line_fragments`.
     """
     policy = policy or ("llvmpipe" if precision == "gl" else "guard_band")
@@ -955,7 +971,8 @@ def rasterized_lines(clip: np.ndarray, indices: np.ndarray, width: int, height: 
     frags, t = rasterize_lines(window, width, height, precision, sample_positions=sample_positions)
     source = np.asarray(indices, np.int64).reshape(-1, 2)[clipped.source]          # (L, 2)
     at = np.asarray(values, np.float64)[source]                                    # (L, 2, K)
-    ends = clipped.weights[..., 0:1] * at[:, None, 0] + clipped.weights[..., 1:2] * at[:, None, 1]
+    made = clipped.weights[..., 0:1] * at[:, None, 0] + clipped.weights[..., 1:2] * at[:, None, 1]
+    ends = np.where(clipped.generated[..., None], made, at)      # (end k of a kept line: vertex k)
     return frags, t, window, inv_w, ends
 
 
