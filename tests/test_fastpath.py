@@ -898,12 +898,10 @@ def test_corner_values_are_the_stages_with_signed_zeros_and_infinities():
         got = np.empty((len(source), 3, values.shape[1]))
         for t in range(len(source)):
             k_setup._corner_values(values, got, t, clipped, swapped)
-        assert np.array_equal(expected, got, equal_nan=True), swapped
-        assert np.array_equal(np.signbit(expected), np.signbit(got)), swapped
+        assert_same_bits(expected, got, f"swapped {swapped}")
         own = indices[source][np.arange(len(source))[:, None], weights.argmax(axis=2)][:, order]
         kept_here = kept[:, order]
-        assert np.array_equal(got[kept_here], values[own[kept_here]], equal_nan=True)
-        assert np.array_equal(np.signbit(got[kept_here]), np.signbit(values[own[kept_here]]))
+        assert_same_bits(values[own[kept_here]], got[kept_here], f"kept corners, swapped {swapped}")
 
 
 def test_line_end_values_are_the_stages_with_signed_zeros_and_infinities():
@@ -939,12 +937,15 @@ def test_line_end_values_are_the_stages_with_signed_zeros_and_infinities():
     k_lines._SET_UP_LINES(0, 1, c, _plane_distances(c, planes), finite, read_only(indices, np.int64),
                           read_only(values, np.float64), False, width, height, *table)
     got = table.ends[clipped.source]
-    assert np.array_equal(expected, got, equal_nan=True)
-    assert np.array_equal(np.signbit(expected), np.signbit(got))
+    assert_same_bits(expected, got, "line ends")
     kept = ~clipped.generated
-    vertex_values = values[indices[clipped.source]]
-    assert np.array_equal(got[kept], vertex_values[kept], equal_nan=True)
-    assert np.array_equal(np.signbit(got[kept]), np.signbit(vertex_values[kept]))
+    assert_same_bits(values[indices[clipped.source]][kept], got[kept], "kept line ends")
+
+
+def assert_same_bits(expected, got, what):
+    """The same float64 values, NaN where NaN and the same sign of zero."""
+    assert np.array_equal(expected, got, equal_nan=True), what
+    assert np.array_equal(np.signbit(expected), np.signbit(got)), what
 
 
 def test_reused_scratch_buffers_do_not_leak_between_renders():

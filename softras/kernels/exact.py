@@ -64,7 +64,7 @@ from softras.kernels.light import NO_LIGHTING, _phong_colors, base_colors, flat_
 from softras.kernels.ops import _resolve_box, _uses_depth
 from softras.kernels import rgba32f
 from softras.kernels.scratch import _Scratch
-from softras.kernels.setup import CULL_CODES, _depth_slopes
+from softras.kernels.setup import CULL_CODES, _depth_slopes, _own_vertex
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _filter_level, _nan_max, texture_tables
 from softras.kernels.texture_beyond import _beyond_texel, beyond_tables
@@ -169,31 +169,37 @@ def corner_values(clipped, tris: setup.TriangleSetup, mesh):
     return corners
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _corners(weights, source, indices, triangle, corner, values, out):
-    """out[t, k] = the values at set-up corner k (row corner[t, k] of
-    weights[triangle[t]]) as `softras.pipeline.render.corner_values` takes
-    them: a corner's own vertex's values when one of its clip weights is
-    exactly 1 (the first such), else the clip weights applied to the values
-    of its source triangle's vertices (indices[source[triangle[t]]]), as
-    numpy's einsum ``tkj,tjc->tkc`` sums them: from 0, j = 0, 1, 2 in order."""
-    for t in range(out.shape[0]):
-        clipped = triangle[t]
-        vertices = source[clipped]
-        for k in range(3):
-            row = corner[t, k]
-            own = -1
-            for j in range(2, -1, -1):
-                if weights[clipped, row, j] == 1.0:
-                    own = j
-            for c in range(out.shape[2]):
-                if own >= 0:
-                    out[t, k, c] = values[indices[vertices, own], c]
-                    continue
-                total = 0.0
-                for j in range(3):
-                    total += weights[clipped, row, j] * values[indices[vertices, j], c]
-                out[t, k, c] = total
+def _make_corners(sources: str):
+    """`_corners`, cached with the stamp of the kernels' sources as a
+    closure variable (`softras.kernels.stamp`: it inlines
+    `softras.kernels.setup._own_vertex`).  sources : in the cache key only."""
+
+    @numba.njit(cache=True, error_model="numpy")
+    def corners(weights, source, indices, triangle, corner, values, out):
+        """out[t, k] = the values at set-up corner k (row corner[t, k] of
+        weights[triangle[t]]) as `softras.pipeline.render.corner_values`
+        takes them: a corner's own vertex's values when the clipper passed
+        it through (`softras.kernels.setup._own_vertex`), else the clip
+        weights applied to the values of its source triangle's vertices
+        (indices[source[triangle[t]]]), as numpy's einsum ``tkj,tjc->tkc``
+        sums them: from 0, j = 0, 1, 2 in order."""
+        stamp = sources                 # noqa: F841  (a closure variable: the cache key)
+        for t in range(out.shape[0]):
+            clipped = triangle[t]
+            vertices = source[clipped]
+            for k in range(3):
+                row = corner[t, k]
+                own = _own_vertex(clipped, weights, row)
+                for c in range(out.shape[2]):
+                    if own >= 0:
+                        out[t, k, c] = values[indices[vertices, own], c]
+                        continue
+                    total = 0.0
+                    for j in range(3):
+                        total += weights[clipped, row, j] * values[indices[vertices, j], c]
+                    out[t, k, c] = total
+
+    return corners
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -768,6 +774,7 @@ def _make_draw(sources: str):
 # The kernels, keyed on the kernels' sources and the stages' they call.
 _SOURCES = sources_stamp(rasterize, ops, texture, libm, texture_beyond)
 _ANISOTROPIC = _make_anisotropic(_SOURCES)
+_corners = _make_corners(_SOURCES)
 _PHONG = _make_phong(_SOURCES)
 _UV_AT = _make_uv_at(_SOURCES)
 _TEXELS = _make_texels(_SOURCES)

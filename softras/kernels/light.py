@@ -163,11 +163,11 @@ def _dot(ax, ay, az, bx, by, bz):
 
 
 @numba.njit(cache=True, inline="always")
-def _lit_corners(values, r0, r1, r2, c):
+def _lit_corners(lit, r0, r1, r2, c):
     """Value c of a triangle's three corners in a table of lit attributes
     by row (`_phong_colors`: rows r0, r1, r2), as the 3-tuple `_mix`
     weighs."""
-    return values[r0, c], values[r1, c], values[r2, c]
+    return lit[r0, c], lit[r1, c], lit[r2, c]
 
 
 @numba.njit(error_model="numpy", inline="always")
@@ -193,12 +193,9 @@ def _phong_colors(n, t, colors, lit, lit_rows, lf, lights, lighting, mapped):
     eye_x, eye_y, eye_z, ambient, diffuse, specular, shininess = lighting
     whole = _whole_exponent(shininess)
     cc = _corner_colors(colors, t)
-    values = lit
     r0, r1, r2 = lit_rows[t, 0], lit_rows[t, 1], lit_rows[t, 2]
-    px3, py3, pz3 = _lit_corners(values, r0, r1, r2, 0), _lit_corners(values, r0, r1, r2, 1), \
-        _lit_corners(values, r0, r1, r2, 2)
-    nx3, ny3, nz3 = _lit_corners(values, r0, r1, r2, 3), _lit_corners(values, r0, r1, r2, 4), \
-        _lit_corners(values, r0, r1, r2, 5)
+    px3, py3, pz3 = _lit_corners(lit, r0, r1, r2, 0), _lit_corners(lit, r0, r1, r2, 1), _lit_corners(lit, r0, r1, r2, 2)
+    nx3, ny3, nz3 = _lit_corners(lit, r0, r1, r2, 3), _lit_corners(lit, r0, r1, r2, 4), _lit_corners(lit, r0, r1, r2, 5)
     for l in range(n):
         w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
         px, py, pz = _mix(w, px3), _mix(w, py3), _mix(w, pz3)
@@ -212,8 +209,8 @@ def _phong_colors(n, t, colors, lit, lit_rows, lf, lights, lighting, mapped):
         lf[_LF_LIT + 2, l] = ambient * _mix(w, cc.b)
         lf[_LF_LIT + 3, l] = _mix(w, cc.a)
     if mapped:
-        tx3, ty3, tz3, tw3 = (_lit_corners(values, r0, r1, r2, 6), _lit_corners(values, r0, r1, r2, 7),
-                              _lit_corners(values, r0, r1, r2, 8), _lit_corners(values, r0, r1, r2, 9))
+        tx3, ty3, tz3, tw3 = (_lit_corners(lit, r0, r1, r2, 6), _lit_corners(lit, r0, r1, r2, 7),
+                              _lit_corners(lit, r0, r1, r2, 8), _lit_corners(lit, r0, r1, r2, 9))
         for l in range(n):
             w = (lf[_LF_W, l], lf[_LF_W + 1, l], lf[_LF_W + 2, l])
             lf[_LF_NRM, l], lf[_LF_NRM + 1, l], lf[_LF_NRM + 2, l] = _perturb(

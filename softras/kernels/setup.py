@@ -196,8 +196,7 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
                 wx[k], wy[k], wz[k], iw[k] = vertex_f[v, 0], vertex_f[v, 1], vertex_f[v, 2], vertex_f[v, 3]
                 rx[k], ry[k] = vertex_i[v, 0], vertex_i[v, 1]
             else:
-                # A vertex made by the clipper has no weight exactly 1 (clip.generated).
-                fused = max(fan_weights[f, k, 0], max(fan_weights[f, k, 1], fan_weights[f, k, 2])) == 1.0
+                fused = _own_vertex(f, fan_weights, k) >= 0     # (an input vertex: `viewport_transform`)
                 wx[k], wy[k], wz[k], iw[k], rx[k], ry[k] = _window_corner(
                     fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2], fan_clip[f, k, 3], fused,
                     width, height)
@@ -320,15 +319,18 @@ def _lit_rows(values, n_vertices, rows, t, clipped, swapped):
 
 @numba.njit(cache=True, inline="always")
 def _own_vertex(f, fan_weights, row):
-    """Which vertex (0, 1, 2) of its source triangle a set-up corner is
-    when the clipper passed it through, else -1: corner ``row`` of a
-    passed-through triangle (f < 0) is vertex ``row``; a fan triangle f's
-    is the vertex of clip weight exactly 1, if any
-    (`softras.pipeline.clip.ClippedTriangles.generated`)."""
+    """Which vertex (0, 1, 2) of its source triangle corner ``row`` of
+    clipped triangle f is when the clipper passed it through, else -1: of
+    a passed-through triangle (f < 0) vertex ``row``; else, when the
+    corner's largest clip weight (fan_weights (F, 3, 3)) is exactly 1 (not
+    `softras.pipeline.clip.ClippedTriangles.generated`), the first vertex
+    of weight 1, as numpy's argmax finds it."""
     if f < 0:
         return row
     w0, w1, w2 = fan_weights[f, row, 0], fan_weights[f, row, 1], fan_weights[f, row, 2]
-    return 0 if w0 == 1.0 else 1 if w1 == 1.0 else 2 if w2 == 1.0 else -1
+    if max(w0, max(w1, w2)) != 1.0:
+        return -1
+    return 0 if w0 == 1.0 else 1 if w1 == 1.0 else 2
 
 
 @numba.njit(cache=True, inline="always")

@@ -83,7 +83,7 @@ def corner_values(clipped, tris, mesh):
     """
     weights = np.take_along_axis(clipped.weights[tris.triangle], tris.corner[..., None], axis=1)
     source = mesh.indices[clipped.source[tris.triangle]]                # (T', 3)
-    passed = weights.max(axis=2) == 1.0                                 # (T', 3)
+    passed = ~np.take_along_axis(clipped.generated[tris.triangle], tris.corner, axis=1)    # (T', 3)
     own = np.take_along_axis(source, weights.argmax(axis=2), axis=1)[passed]
 
     def corners(values: np.ndarray) -> np.ndarray:
