@@ -897,7 +897,7 @@ def test_corner_values_are_the_stages_with_signed_zeros_and_infinities():
             expected = render_stage.corner_values(stage_clipped, tris, mesh)[1](values)
         got = np.empty((len(source), 3, values.shape[1]))
         for t in range(len(source)):
-            k_setup._corner_values(values, got, t, clipped, swapped)
+            k_setup._corner_values(values, got, t, clipped, swapped, values.shape[1])
         assert_same_bits(expected, got, f"swapped {swapped}")
         own = indices[source][np.arange(len(source))[:, None], weights.argmax(axis=2)][:, order]
         kept_here = kept[:, order]

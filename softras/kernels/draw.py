@@ -353,7 +353,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
             tris = _triangle_buffers(take, rows, is_textured, world_normals)
             n, source, visible, bin_start, bin_tri, pixels = _front_end(
                 read_only(mesh.positions, np.float32), mvp.astype(np.float32), indices, scene.width,
-                scene.height, cull, samples.offsets, (base, uvs, world_normals), tuple(tris),
+                scene.height, cull, samples.box, (base, uvs, world_normals), tuple(tris),
                 window_buffers(_scratch, len(mesh.positions)), tiles_x, tiles_y)
             if n <= rows:
                 break
@@ -367,7 +367,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
                                                                     3 * len(clipped.fan_weights))
         tris = _triangle_buffers(take, len(clipped.source), is_textured, world_normals)
         visible, bin_start, bin_tri, pixels = _set_up_and_bin(
-            clip_pos, clipped, scene, cull, samples.offsets, (base, uvs, world_normals), tris, take, tiles_x,
+            clip_pos, clipped, scene, cull, samples.box, (base, uvs, world_normals), tris, take, tiles_x,
             tiles_y)
         source = clipped.source
     if len(visible) == 0:
@@ -403,7 +403,7 @@ def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
     return TileWork(draw_tiles, records, n_samples, work, len(mesh.indices))
 
 
-def _set_up_and_bin(clip_pos, clipped, scene, cull, offsets, vertex_values, tris, take, tiles_x: int,
+def _set_up_and_bin(clip_pos, clipped, scene, cull, box, vertex_values, tris, take, tiles_x: int,
                     tiles_y: int) -> tuple:
     """`_setup` of the clipped triangles into tris, and their binning:
     (visible (K,), bin_start (tiles + 1,), bin_tri (N,), pixels) (`Bins`;
@@ -414,7 +414,7 @@ def _set_up_and_bin(clip_pos, clipped, scene, cull, offsets, vertex_values, tris
     summed."""
     listed = take("listed", (len(clipped.source),), np.int64)
     counts = np.zeros((numba.get_num_threads(), tiles_x * tiles_y + 1), np.int64)
-    found = _setup(clip_pos, clipped, scene.width, scene.height, cull, offsets, vertex_values, tris, _scratch,
+    found = _setup(clip_pos, clipped, scene.width, scene.height, cull, box, vertex_values, tris, _scratch,
                    (listed, counts, tiles_x))
     runs = [listed[start:start + k] for start, k, _ in found]
     visible = runs[0] if len(runs) == 1 else np.concatenate(runs)

@@ -34,7 +34,7 @@ def _make_front_end(sources: str):
     alone).  sources : in the cache key only."""
 
     @numba.njit(cache=True, error_model="numpy")
-    def front_end(positions, mvp, indices, width, height, cull, offsets, vertex_values, tris, window, tiles_x,
+    def front_end(positions, mvp, indices, width, height, cull, box, vertex_values, tris, window, tiles_x,
                   tiles_y):
         """One triangle draw's vertices to clip space (`softras.pipeline.vertex._transform`
         of positions (V, 3) and mvp (4, 4), both float32: gl precision's
@@ -43,7 +43,7 @@ def _make_front_end(sources: str):
         their set-up into the rows of tris (the `softras.kernels.setup.Triangles`
         as a plain tuple, with room for T or more; `softras.kernels.setup._setup`
         serially, the window corners in window = (vertex_f (V, 4) float64,
-        vertex_i (V, 2) int64), the vertex values as there) and their
+        vertex_i (V, 2) int64), the sample box and vertex values as there) and their
         binning into tiles_x x tiles_y tiles (`softras.kernels.setup._setup_range`'s
         listing and counting, `softras.kernels.rasterize._fill_bins`).
 
@@ -65,7 +65,7 @@ def _make_front_end(sources: str):
         listed = np.empty(n, np.int64)
         counts = np.zeros(tiles_x * tiles_y + 1, np.int64)
         n_visible, pixels = _setup_range(np.int64(0), n, window, (indices, source, slot, fan_clip, fan_weights),
-                                         width, height, cull, offsets, vertex_values, tris, (listed, counts, tiles_x))
+                                         width, height, cull, box, vertex_values, tris, (listed, counts, tiles_x))
         visible = listed[:n_visible]
         bin_start, bin_tri = _fill_bins(visible, tris[2], tiles_x, counts)
         return n, source, visible, bin_start, bin_tri, pixels

@@ -66,13 +66,15 @@ Clipped = namedtuple("Clipped", ["indices", "source", "slot", "fan_clip", "fan_w
 Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit", "lit_rows"])
 
 
-def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris, scratch, bins) -> np.ndarray:
+def _setup(clip_pos, clipped, width, height, cull, box, vertex_values, tris, scratch, bins) -> np.ndarray:
     """`softras.pipeline.setup.setup_triangles` (gl precision) of the clipped
     triangles, and the first pass of their binning (`_setup_range`): in one
     call, or from PARALLEL_SETUP triangles (read at call time) in a share a
     thread (`softras.kernels.pool.on_threads`), share r taking the r-th of
     n_shares runs of the triangles.  clip_pos : the mesh's vertices in clip
-    space (V, 4); clipped : the `Clipped` list; vertex_values : (vertex
+    space (V, 4); clipped : the `Clipped` list; box : the sample offsets'
+    extremes (min x, max x, min y, max y) int64 (4,), raster units
+    (`softras.pipeline.rasterize._sample_box`); vertex_values : (vertex
     colours (V, 4), vertex uvs (V, 2) or (0, 2) when untextured, vertex
     world positions and normals (V + 3 F, 6 or 10: tris' lit) or (0, 6)
     when not Phong-shaded); tris : the `Triangles` to fill; scratch : the caller's reused buffers
@@ -86,7 +88,7 @@ def _setup(clip_pos, clipped, width, height, cull, offsets, vertex_values, tris,
     # shared by ~6 triangles).
     vertex_f, vertex_i = window_buffers(scratch, len(clip_pos))
     _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
-    args = ((vertex_f, vertex_i), tuple(clipped), width, height, cull, offsets, vertex_values, tuple(tris))
+    args = ((vertex_f, vertex_i), tuple(clipped), width, height, cull, box, vertex_values, tuple(tris))
     listed, counts, tiles_x = bins
     n = len(clipped.source)
     # (The thread count asked only for a parallel set-up: 3.6 us a call.)
@@ -149,12 +151,13 @@ def _window_corner(x, y, z, w, fused, width, height):
     return wx, wy, wz, np.float64(oow), rx, ry
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _setup_range(start, stop, window, clipped, width, height, cull, offsets, vertex_values, tris, bins):
+@numba.njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _setup_range(start, stop, window, clipped, width, height, cull, box, vertex_values, tris, bins):
     """`softras.pipeline.setup.setup_triangles` (gl precision) and the depth plane of
     `softras.pipeline.interpolate.depth_at_samples`, for the clipped triangles start
     to stop - 1 (clipped: the `Clipped` list as a plain tuple), the input vertices' window corners given
-    (window = (vertex_f, vertex_i) of `_window_vertices`).
+    (window = (vertex_f, vertex_i) of `_window_vertices`), box the sample
+    offsets' extremes (`_setup`).
 
     Fills their rows of tris (the `Triangles` as a plain tuple): f, i, bbox, and the corner
     attributes (`_corner_values`) of vertex_values = (vertex colours (V, 4),
@@ -171,53 +174,38 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
     n], and counts[k + 1] += 1 for each TILE x TILE tile k their boxes
     touch.  Returns n and the sum of their boxes' pixels (the draw's work,
     `softras.kernels.draw.shares`).
+
+    Compiled without reference counting, as the tile drivers are
+    (``_nrt=False``): it allocates nothing, and the corners are values
+    (`_corner`), not small arrays, so that they stay in registers (with
+    `_corner_values`' constant channel counts: 46 -> 37 ns a triangle of
+    the 100k-triangle grid on one thread; docs/speed.md, "Forty-ninth
+    round").
     """
     _aligned_stack()                    # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
-    vertex_f, vertex_i = window
-    indices, source, slot, fan_clip, fan_weights = clipped
     tri_f, tri_i, bbox, corner_colors, corner_uvs, _, lit_rows = tris
     vertex_colors, vertex_uvs, vertex_lit = vertex_values
-    min_ox, max_ox = offsets[:, 0].min(), offsets[:, 0].max()
-    min_oy, max_oy = offsets[:, 1].min(), offsets[:, 1].max()
-    wx = np.empty(3)
-    wy = np.empty(3)
-    wz = np.empty(3)
-    iw = np.empty(3)
-    rx = np.empty(3, np.int64)
-    ry = np.empty(3, np.int64)
+    min_ox, max_ox, min_oy, max_oy = box[0], box[1], box[2], box[3]
     listed, counts, tiles_x = bins
     n_visible = 0
     pixels = 0
     for t in range(start, stop):
-        f = slot[t]
-        for k in range(3):
-            if f < 0:
-                v = indices[source[t], k]
-                wx[k], wy[k], wz[k], iw[k] = vertex_f[v, 0], vertex_f[v, 1], vertex_f[v, 2], vertex_f[v, 3]
-                rx[k], ry[k] = vertex_i[v, 0], vertex_i[v, 1]
-            else:
-                fused = _own_vertex(f, fan_weights, k) >= 0     # (an input vertex: `viewport_transform`)
-                wx[k], wy[k], wz[k], iw[k], rx[k], ry[k] = _window_corner(
-                    fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2], fan_clip[f, k, 3], fused,
-                    width, height)
-        area = (rx[1] - rx[0]) * (ry[2] - ry[0]) - (rx[2] - rx[0]) * (ry[1] - ry[0])
+        c0 = _corner(t, 0, window, clipped, width, height)
+        c1 = _corner(t, 1, window, clipped, width, height)
+        c2 = _corner(t, 2, window, clipped, width, height)
+        area = (c1[4] - c0[4]) * (c2[5] - c0[5]) - (c2[4] - c0[4]) * (c1[5] - c0[5])
         front = area > 0
         if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
             continue
         tri_i[t, _I_SWAP] = 0 if front else 1
         if not front:                           # swap corners 0 and 1 -> counter-clockwise
-            wx[0], wx[1] = wx[1], wx[0]
-            wy[0], wy[1] = wy[1], wy[0]
-            wz[0], wz[1] = wz[1], wz[0]
-            iw[0], iw[1] = iw[1], iw[0]
-            rx[0], rx[1] = rx[1], rx[0]
-            ry[0], ry[1] = ry[1], ry[0]
+            c0, c1 = c1, c0
         # Bounding box in pixels, as setup_triangles computes it (its
         # float ceil / floor of a multiple of 1/256 here in integers).
-        x_lo = -((max_ox - min(rx[0], min(rx[1], rx[2]))) >> SUBPIXEL_BITS)
-        x_hi = (max(rx[0], max(rx[1], rx[2])) - min_ox) >> SUBPIXEL_BITS
-        y_lo = -((max_oy - min(ry[0], min(ry[1], ry[2]))) >> SUBPIXEL_BITS)
-        y_hi = (max(ry[0], max(ry[1], ry[2])) - min_oy) >> SUBPIXEL_BITS
+        x_lo = -((max_ox - min(c0[4], min(c1[4], c2[4]))) >> SUBPIXEL_BITS)
+        x_hi = (max(c0[4], max(c1[4], c2[4])) - min_ox) >> SUBPIXEL_BITS
+        y_lo = -((max_oy - min(c0[5], min(c1[5], c2[5]))) >> SUBPIXEL_BITS)
+        y_hi = (max(c0[5], max(c1[5], c2[5])) - min_oy) >> SUBPIXEL_BITS
         b0 = max(min(max(x_lo, -1), width), 0)
         b1 = min(min(max(x_hi, -1), width), width - 1)
         b2 = max(min(max(y_lo, -1), height), 0)
@@ -225,38 +213,67 @@ def _setup_range(start, stop, window, clipped, width, height, cull, offsets, ver
         if b0 > b1 or b2 > b3:
             continue
         bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = b0, b1, b2, b3
-        for i in range(3):
-            j = (i + 1) % 3
-            x0, y0, x1, y1 = rx[i], ry[i], rx[j], ry[j]
-            sign = 1
-            if x0 > x1 or (x0 == x1 and y0 > y1):
-                x0, y0, x1, y1 = x1, y1, x0, y0
-                sign = -1
-            a = (y0 - y1) * sign
-            b = (x1 - x0) * sign
-            tri_i[t, _I_A + i] = a
-            tri_i[t, _I_B + i] = b
-            tri_i[t, _I_X0 + i] = x0
-            tri_i[t, _I_Y0 + i] = y0
-            tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
+        _edge(tri_i, t, 0, c0, c1)
+        _edge(tri_i, t, 1, c1, c2)
+        _edge(tri_i, t, 2, c2, c0)
         listed[start + n_visible] = t
         n_visible += 1
         pixels += (b1 - b0 + 1) * (b3 - b2 + 1)
         for ty in range(b2 // TILE, b3 // TILE + 1):
             for tx in range(b0 // TILE, b1 // TILE + 1):
                 counts[ty * tiles_x + tx + 1] += 1
-        for k in range(3):
-            tri_f[t, _F_X + k] = wx[k]
-            tri_f[t, _F_Y + k] = wy[k]
-            tri_f[t, _F_Z + k] = wz[k]
-            tri_f[t, _F_W + k] = iw[k]
+        wx, wy, wz = (c0[0], c1[0], c2[0]), (c0[1], c1[1], c2[1]), (c0[2], c1[2], c2[2])
+        tri_f[t, _F_X], tri_f[t, _F_X + 1], tri_f[t, _F_X + 2] = wx
+        tri_f[t, _F_Y], tri_f[t, _F_Y + 1], tri_f[t, _F_Y + 2] = wy
+        tri_f[t, _F_Z], tri_f[t, _F_Z + 1], tri_f[t, _F_Z + 2] = wz
+        tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2] = c0[3], c1[3], c2[3]
         tri_f[t, _F_DZDX], tri_f[t, _F_DZDY] = _depth_slopes(wx, wy, wz)
-        _corner_values(vertex_colors, corner_colors, t, clipped, tri_i[t, _I_SWAP])
+        _corner_values(vertex_colors, corner_colors, t, clipped, tri_i[t, _I_SWAP], 4)
         if vertex_uvs.shape[0]:
-            _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP])
+            _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP], 2)
         if vertex_lit.shape[0]:
             _lit_rows(vertex_lit, vertex_colors.shape[0], lit_rows, t, clipped, tri_i[t, _I_SWAP])
     return n_visible, pixels
+
+
+@numba.njit(cache=True, inline="always")
+def _corner(t, k, window, clipped, width, height):
+    """Corner k of clipped triangle t (clipped: the `Clipped` list as a plain
+    tuple) in window space: (x, y, z, 1/w, snapped x, snapped y), an input
+    vertex's from window = (vertex_f, vertex_i) of `_window_vertices`, a
+    corner of a fan triangle the clipper made from its clip position
+    (`_window_corner`, fused where the clipper passed the vertex through:
+    `viewport_transform`)."""
+    vertex_f, vertex_i = window
+    indices, source, slot, fan_clip, fan_weights = clipped
+    f = slot[t]
+    if f < 0:
+        v = indices[source[t], k]
+        return vertex_f[v, 0], vertex_f[v, 1], vertex_f[v, 2], vertex_f[v, 3], vertex_i[v, 0], vertex_i[v, 1]
+    fused = _own_vertex(f, fan_weights, k) >= 0
+    return _window_corner(fan_clip[f, k, 0], fan_clip[f, k, 1], fan_clip[f, k, 2], fan_clip[f, k, 3], fused,
+                          width, height)
+
+
+@numba.njit(cache=True, inline="always")
+def _edge(tri_i, t, i, p, q):
+    """Edge i of set-up triangle t, from corner p to corner q (`_corner`s,
+    snapped x, y at 4 and 5), into tri_i's row t: `softras.pipeline.setup.edge_equations`'
+    A, B and origin (X0, Y0), from the endpoints in lexicographic order and
+    negated if they were swapped, and the tie rule's inclusive flag
+    (llvmpipe's "left_bottom": A > 0, or A = 0 and B > 0)."""
+    x0, y0, x1, y1 = p[4], p[5], q[4], q[5]
+    sign = 1
+    if x0 > x1 or (x0 == x1 and y0 > y1):
+        x0, y0, x1, y1 = x1, y1, x0, y0
+        sign = -1
+    a = (y0 - y1) * sign
+    b = (x1 - x0) * sign
+    tri_i[t, _I_A + i] = a
+    tri_i[t, _I_B + i] = b
+    tri_i[t, _I_X0 + i] = x0
+    tri_i[t, _I_Y0 + i] = y0
+    tri_i[t, _I_INC + i] = 1 if (a > 0 or (a == 0 and b > 0)) else 0
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -271,22 +288,25 @@ def _depth_slopes(wx, wy, wz):
 
 
 @numba.njit(cache=True, inline="always")
-def _corner_values(values, out, t, clipped, swapped):
+def _corner_values(values, out, t, clipped, swapped, channels):
     """`softras.pipeline.render.corner_values`: the attributes at set-up
     triangle t's corners, out[t] (3, K), from the vertex values (V, K), in
     set-up corner order: a corner the clipper passed through its vertex's
     values as they are, a corner it made the weighted sum of
-    `_made_corner` (`_own_vertex` tells them apart)."""
+    `_made_corner` (`_own_vertex` tells them apart).  channels : K, a
+    constant at the call (4 for colours, 2 for uvs), so that the copies
+    compile to a fixed count (``values.shape[1]`` cost the set-up ~2.5 ns
+    of ~40 a triangle)."""
     indices, source, slot, _, fan_weights = clipped
     for k in range(3):
         row = 1 - k if swapped and k < 2 else k
         own = _own_vertex(slot[t], fan_weights, row)
         if own >= 0:
             v = indices[source[t], own]
-            for c in range(values.shape[1]):
+            for c in range(channels):
                 out[t, k, c] = values[v, c]
         else:
-            for c in range(values.shape[1]):
+            for c in range(channels):
                 out[t, k, c] = _made_corner(values, indices, source[t], fan_weights, slot[t], row, c)
 
 
