@@ -58,14 +58,35 @@ def _fill_bins(visible, bbox, tiles_x, counts):
     tile k's at k + 1).  Returns bin_start (tiles + 1,) and bin_tri (N,):
     tile k's triangles at bin_tri[bin_start[k]:bin_start[k + 1]], in draw
     order, so a tile's pixels see their triangles in the pipeline's
-    fragment order."""
+    fragment order.
+
+    A mesh's triangles come in runs within one tile (neighbours in the
+    mesh's order): the next place in the run's tile is held in a register
+    (``run_at``) and stored back when the run ends, instead of each
+    triangle's place waiting on the store of the one before it (the 100k
+    grid's binning 0.50 -> 0.22 ms on one thread; docs/speed.md,
+    "Forty-ninth round")."""
     start = np.cumsum(counts)
     fill = start[:-1].copy()
     out = np.empty(start[-1], np.int64)
+    run_k, run_at = -1, 0                   # the run's tile (-1: none) and its next place
     for v in range(visible.shape[0]):
         t = visible[v]
-        for ty in range(bbox[t, 2] // TILE, bbox[t, 3] // TILE + 1):
-            for tx in range(bbox[t, 0] // TILE, bbox[t, 1] // TILE + 1):
+        tx0, tx1, ty0, ty1 = bbox[t, 0] // TILE, bbox[t, 1] // TILE, bbox[t, 2] // TILE, bbox[t, 3] // TILE
+        if tx0 == tx1 and ty0 == ty1:       # (in one tile: the run's, or the start of another)
+            k = ty0 * tiles_x + tx0
+            if k != run_k:
+                if run_k >= 0:
+                    fill[run_k] = run_at
+                run_k, run_at = k, fill[k]
+            out[run_at] = t
+            run_at += 1
+            continue
+        if run_k >= 0:                      # (a triangle across tiles ends the run)
+            fill[run_k] = run_at
+            run_k = -1
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
                 k = ty * tiles_x + tx
                 out[fill[k]] = t
                 fill[k] += 1
