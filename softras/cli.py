@@ -1077,35 +1077,6 @@ def _without_numba_blas() -> None:
         del sys.modules["scipy.linalg"]
 
 
-# glibc's mallopt parameters (malloc.h) and the values `_keep_freed_memory` sets.
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-_MMAP_FROM = 32 << 20
-_TRIM_FROM = 128 << 20
-
-
-def _keep_freed_memory() -> None:
-    """Let glibc's malloc keep the memory one render frees for the next.
-
-    A render of a large mesh makes arrays of megabytes (its clip-space
-    vertices, the clipper's lists, the tiles' lists, the picture) and frees
-    them, and glibc hands such blocks back to the system (a block above the
-    mmap threshold is unmapped, the heap trimmed above the trim threshold):
-    the next render takes them again page by page, each page a fault the
-    kernel zeroes.  The 100k-triangle grid faulted 915 pages a render, 1.8-
-    2.4 ms of system time in a render of 10-12 ms (docs/speed.md,
-    "Forty-ninth round").  Here blocks below 32 MiB come from the heap and
-    up to 128 MiB of it is kept free.  On glibc only (mallopt); like
-    `_without_numba_blas`, this process is the command line's: a program
-    that uses softras as a library keeps its allocator as it set it."""
-    import ctypes
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):          # (no glibc: the allocator stays as it is)
-        return
-    mallopt(_M_MMAP_THRESHOLD, _MMAP_FROM)
-    mallopt(_M_TRIM_THRESHOLD, _TRIM_FROM)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the ``softras`` command line.
 
@@ -1139,7 +1110,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.func not in (cmd_compare, cmd_info, cmd_conformance):
         announce_compilation()
         _without_numba_blas()
-        _keep_freed_memory()
     try:
         return args.func(args)
     except (CLIError, ImageError) as error:

@@ -71,42 +71,6 @@ def write_scene(tmp_path, scene=TRIANGLE_SCENE, name="scene.json"):
 # Help and usage
 
 
-_FAULTS_AFTER_FREES = """
-import resource, sys
-import numpy as np
-from softras.cli import main
-if sys.argv[1] != "-":                      # (a render by the command line first)
-    assert main(["render", sys.argv[1], "-o", sys.argv[2]]) == 0
-def faults():
-    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
-for _ in range(3):
-    a, b, c = np.ones(1 << 19), np.ones(1 << 18), np.ones(1 << 19)
-    del a, c, b
-start = faults()
-for _ in range(20):
-    a, b, c = np.ones(1 << 19), np.ones(1 << 18), np.ones(1 << 19)
-    del a, c, b
-print(faults() - start)
-"""
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
-def test_the_command_line_keeps_freed_memory_for_the_next_render(tmp_path):
-    """After ``softras render`` (`softras.cli._keep_freed_memory`), blocks of
-    megabytes freed and taken again (a render's temporary arrays, 10 MB a
-    round here) fault no page; in a process with glibc's own thresholds
-    each round faulted its pages again (~1,500 a round)."""
-    scene = SCENES / "culling_back.json"
-    faults = {}
-    for how, args in (("after softras render", [str(scene), str(tmp_path / "out.png")]), ("glibc's", ["-"])):
-        done = subprocess.run([sys.executable, "-c", _FAULTS_AFTER_FREES, *args], capture_output=True, text=True,
-                              timeout=300)
-        assert done.returncode == 0, done.stderr[-2000:]
-        faults[how] = int(done.stdout.split()[-1])
-    assert faults["glibc's"] > 20 * 1000, faults
-    assert faults["after softras render"] < 20 * 50, faults
-
-
 def test_the_command_line_renders_without_importing_scipy_linalg(tmp_path):
     """A ``softras render`` process loads numba's array code with BLAS
     hidden (`softras.cli._without_numba_blas`: scipy.linalg took 0.3 s of a
