@@ -413,12 +413,11 @@ def _set_up_and_bin(clip_pos, clipped, scene, cull, box, vertex_values, tris, ta
     are the draw order, and `_fill_bins` fills the tiles from the counts
     summed."""
     listed = take("listed", (len(clipped.source),), np.int64)
-    counts = np.zeros((numba.get_num_threads(), tiles_x * tiles_y + 1), np.int64)
-    found = _setup(clip_pos, clipped, scene.width, scene.height, cull, box, vertex_values, tris, _scratch,
-                   (listed, counts, tiles_x))
+    found, counts = _setup(clip_pos, clipped, scene.width, scene.height, cull, box, vertex_values, tris, _scratch,
+                           (listed, tiles_x, tiles_y))
     runs = [listed[start:start + k] for start, k, _ in found]
     visible = runs[0] if len(runs) == 1 else np.concatenate(runs)
-    bin_start, bin_tri = _fill_bins(visible, tris.bbox, tiles_x, counts[:len(found)].sum(axis=0))
+    bin_start, bin_tri = _fill_bins(visible, tris.bbox, tiles_x, counts)
     return visible, bin_start, bin_tri, int(found[:, 2].sum())
 
 

@@ -64,7 +64,7 @@ from softras.kernels.light import NO_LIGHTING, _phong_colors, base_colors, flat_
 from softras.kernels.ops import _resolve_box, _uses_depth
 from softras.kernels import rgba32f
 from softras.kernels.scratch import _Scratch
-from softras.kernels.setup import CULL_CODES, _depth_slopes, _own_vertex
+from softras.kernels.setup import CULL_CODES, _depth_slopes, _made_corner, _own_vertex
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _filter_level, _nan_max, texture_tables
 from softras.kernels.texture_beyond import _beyond_texel, beyond_tables
@@ -172,7 +172,8 @@ def corner_values(clipped, tris: setup.TriangleSetup, mesh):
 def _make_corners(sources: str):
     """`_corners`, cached with the stamp of the kernels' sources as a
     closure variable (`softras.kernels.stamp`: it inlines
-    `softras.kernels.setup._own_vertex`).  sources : in the cache key only."""
+    `softras.kernels.setup._own_vertex` and `_made_corner`).  sources : in
+    the cache key only."""
 
     @numba.njit(cache=True, error_model="numpy")
     def corners(weights, source, indices, triangle, corner, values, out):
@@ -181,8 +182,8 @@ def _make_corners(sources: str):
         takes them: a corner's own vertex's values when the clipper passed
         it through (`softras.kernels.setup._own_vertex`), else the clip
         weights applied to the values of its source triangle's vertices
-        (indices[source[triangle[t]]]), as numpy's einsum ``tkj,tjc->tkc``
-        sums them: from 0, j = 0, 1, 2 in order."""
+        (indices[source[triangle[t]]]) as numpy's einsum ``tkj,tjc->tkc``
+        sums them (`softras.kernels.setup._made_corner`)."""
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
         for t in range(out.shape[0]):
             clipped = triangle[t]
@@ -190,14 +191,12 @@ def _make_corners(sources: str):
             for k in range(3):
                 row = corner[t, k]
                 own = _own_vertex(clipped, weights, row)
-                for c in range(out.shape[2]):
-                    if own >= 0:
+                if own >= 0:
+                    for c in range(out.shape[2]):
                         out[t, k, c] = values[indices[vertices, own], c]
-                        continue
-                    total = 0.0
-                    for j in range(3):
-                        total += weights[clipped, row, j] * values[indices[vertices, j], c]
-                    out[t, k, c] = total
+                else:
+                    for c in range(out.shape[2]):
+                        out[t, k, c] = _made_corner(values, indices, vertices, weights, clipped, row, c)
 
     return corners
 

@@ -33,9 +33,9 @@ from softras.pipeline import setup as setup_stage
 
 # Per set-up triangle, float64 row of `tri_f`: window x (3), y (3), z (3),
 # 1/w (3), dz/dx, dz/dy.  int64 row of `tri_i`: edge A (3), B (3), X0 (3),
-# Y0 (3), inclusive (3), corners swapped (1).
+# Y0 (3), inclusive (3).
 _F_X, _F_Y, _F_Z, _F_W, _F_DZDX, _F_DZDY, _NF = 0, 3, 6, 9, 12, 13, 14
-_I_A, _I_B, _I_X0, _I_Y0, _I_INC, _I_SWAP, _NI = 0, 3, 6, 9, 12, 15, 16
+_I_A, _I_B, _I_X0, _I_Y0, _I_INC, _NI = 0, 3, 6, 9, 12, 15
 
 CULL_CODES = {"none": 0, "back": 1, "front": 2}
 SUBPIXEL_BITS = setup_stage.SUBPIXEL_BITS      # gl precision snaps to 1/256 pixel
@@ -66,7 +66,7 @@ Clipped = namedtuple("Clipped", ["indices", "source", "slot", "fan_clip", "fan_w
 Triangles = namedtuple("Triangles", ["f", "i", "bbox", "colors", "uv", "lit", "lit_rows"])
 
 
-def _setup(clip_pos, clipped, width, height, cull, box, vertex_values, tris, scratch, bins) -> np.ndarray:
+def _setup(clip_pos, clipped, width, height, cull, box, vertex_values, tris, scratch, bins) -> tuple:
     """`softras.pipeline.setup.setup_triangles` (gl precision) of the clipped
     triangles, and the first pass of their binning (`_setup_range`): in one
     call, or from PARALLEL_SETUP triangles (read at call time) in a share a
@@ -79,21 +79,22 @@ def _setup(clip_pos, clipped, width, height, cull, box, vertex_values, tris, scr
     world positions and normals (V + 3 F, 6 or 10: tris' lit) or (0, 6)
     when not Phong-shaded); tris : the `Triangles` to fill; scratch : the caller's reused buffers
     (`softras.kernels.draw._Scratch`), for the per-vertex tables; bins :
-    (listed (T,) int64, counts (S, tiles + 1) int64 zeros with S at least
-    the thread count, tiles_x), share r's visible triangles listed from
-    its first row and their tiles counted in counts[r].  Returns
-    (n_shares, 3) int64: per share its first row, visible triangles and
-    their boxes' pixels."""
+    (listed (T,) int64, tiles_x, tiles_y), share r's visible triangles
+    listed from its first row.  Returns found (n_shares, 3) int64: per
+    share its first row, visible triangles and their boxes' pixels; and
+    counts (tiles + 1,) int64: tile k's triangles at k + 1, the shares'
+    counts summed (`softras.kernels.rasterize._fill_bins`)."""
     # The window corners of the input vertices, once per vertex (a vertex is
     # shared by ~6 triangles).
     vertex_f, vertex_i = window_buffers(scratch, len(clip_pos))
     _window_vertices(clip_pos, width, height, vertex_f, vertex_i)
     args = ((vertex_f, vertex_i), tuple(clipped), width, height, cull, box, vertex_values, tuple(tris))
-    listed, counts, tiles_x = bins
+    listed, tiles_x, tiles_y = bins
     n = len(clipped.source)
     # (The thread count asked only for a parallel set-up: 3.6 us a call.)
     n_shares = 1 if n < PARALLEL_SETUP else numba.get_num_threads()
     found = np.empty((n_shares, 3), np.int64)
+    counts = np.zeros((n_shares, tiles_x * tiles_y + 1), np.int64)
 
     def share(r):
         start = r * n // n_shares
@@ -101,7 +102,7 @@ def _setup(clip_pos, clipped, width, height, cull, box, vertex_values, tris, scr
         found[r, 1], found[r, 2] = _setup_range(start, (r + 1) * n // n_shares, *args, (listed, counts[r], tiles_x))
 
     on_threads(share, n_shares)
-    return found
+    return found, counts[0] if n_shares == 1 else counts.sum(axis=0)
 
 
 def window_buffers(scratch, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
@@ -197,8 +198,8 @@ def _setup_range(start, stop, window, clipped, width, height, cull, box, vertex_
         front = area > 0
         if area == 0 or (cull == 1 and not front) or (cull == 2 and front):
             continue
-        tri_i[t, _I_SWAP] = 0 if front else 1
-        if not front:                           # swap corners 0 and 1 -> counter-clockwise
+        swapped = 0 if front else 1
+        if swapped:                             # swap corners 0 and 1 -> counter-clockwise
             c0, c1 = c1, c0
         # Bounding box in pixels, as setup_triangles computes it (its
         # float ceil / floor of a multiple of 1/256 here in integers).
@@ -228,11 +229,11 @@ def _setup_range(start, stop, window, clipped, width, height, cull, box, vertex_
         tri_f[t, _F_Z], tri_f[t, _F_Z + 1], tri_f[t, _F_Z + 2] = wz
         tri_f[t, _F_W], tri_f[t, _F_W + 1], tri_f[t, _F_W + 2] = c0[3], c1[3], c2[3]
         tri_f[t, _F_DZDX], tri_f[t, _F_DZDY] = _depth_slopes(wx, wy, wz)
-        _corner_values(vertex_colors, corner_colors, t, clipped, tri_i[t, _I_SWAP], 4)
+        _corner_values(vertex_colors, corner_colors, t, clipped, swapped, 4)
         if vertex_uvs.shape[0]:
-            _corner_values(vertex_uvs, corner_uvs, t, clipped, tri_i[t, _I_SWAP], 2)
+            _corner_values(vertex_uvs, corner_uvs, t, clipped, swapped, 2)
         if vertex_lit.shape[0]:
-            _lit_rows(vertex_lit, vertex_colors.shape[0], lit_rows, t, clipped, tri_i[t, _I_SWAP])
+            _lit_rows(vertex_lit, vertex_colors.shape[0], lit_rows, t, clipped, swapped)
     return n_visible, pixels
 
 
@@ -355,10 +356,12 @@ def _own_vertex(f, fan_weights, row):
 
 @numba.njit(cache=True, inline="always")
 def _made_corner(values, indices, source_t, fan_weights, f, row, c):
-    """Value c at corner ``row`` of fan triangle f, a corner the clipper
-    made: `softras.pipeline.render.corner_values`' ``einsum("tkj,tjc->tkc",
-    w, values[vertices])`` with its clip weights w, in the same sum order
-    (from 0: a -0 sum comes back +0)."""
+    """Value c at corner ``row`` of clipped triangle f (its clip weights
+    fan_weights[f, row]; source_t its source triangle), a corner the
+    clipper made: `softras.pipeline.render.corner_values`'
+    ``einsum("tkj,tjc->tkc", w, values[vertices])``, in the same sum order
+    (from 0: a -0 sum comes back +0).  The set-up's fan triangles and
+    exact precision's clipped triangles (`softras.kernels.exact`) alike."""
     i0, i1, i2 = indices[source_t, 0], indices[source_t, 1], indices[source_t, 2]
     return (((0.0 + fan_weights[f, row, 0] * values[i0, c]) + fan_weights[f, row, 1] * values[i1, c])
             + fan_weights[f, row, 2] * values[i2, c])
