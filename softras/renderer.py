@@ -69,6 +69,9 @@ def render_scene(scene: Scene, *, precision: str = "gl", samples: int | None = N
         fast = prepare.ensure(prepare.variants(scene, len(job.positions)), stages_can_draw)
     if not fast:
         return stages.resolve(job, stages.render_samples(scene, job))
+    if job.rgba8 and len(job.positions) == 1 and job.resolve_filter == "box":    # (a sample's bytes its pixel's)
+        return kernels.render_picture(scene, job.positions, texture_fixed_point=texture_fixed_point,
+                                      texture_filter=texture_filter)
     stored = kernels.render_samples(scene, job.positions, texture_fixed_point=texture_fixed_point,
                                     reuse=True, texture_filter=texture_filter,
                                     rgba8=job.rgba8)           # (the resolve copies it)

@@ -1236,3 +1236,55 @@ def test_the_sample_memory_limit_counts_each_paths_bytes(monkeypatch):
     monkeypatch.setattr(stage_render, "MAX_SAMPLE_BYTES", 64 * 64 * 4 * 8 - 1)
     with pytest.raises(ValueError, match="GiB of sample colour"):
         render_scene(scene, samples=4)
+
+
+def tiles_scene() -> dict:
+    """A 200x150 picture (4 x 3 tiles of 64, the last column and row
+    partial) that the fast path clears where draws first reach its tiles:
+    40 small depth-tested quads along a diagonal (more than a batch, so the
+    tiles at the far end are first drawn in a later batch), a line draw
+    between them (the tiles no draw reached yet cleared before it), one
+    blended quad drawn after the line, and tiles no draw reaches at all."""
+    quad = {"positions": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], "indices": [[0, 1, 2], [0, 2, 3]],
+            "colors": [[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1], [1, 1, 0, 1]]}
+    nodes = [{"name": f"quad{k}", "mesh": quad, "scale": [0.08, 0.08, 1],
+              "translate": [-1.6 + 0.07 * k, -1.1 + 0.045 * k, -0.01 * k]} for k in range(40)]
+    nodes.insert(20, {"name": "line", "mesh": {"primitive": "lines", "positions": [[-1.9, 1.2, 0], [0.3, 1.3, 0]],
+                                               "indices": [[0, 1]]}})
+    nodes.append({"name": "over", "mesh": quad, "scale": [0.3, 0.3, 1], "translate": [0.9, 0.5, 0.5],
+                  "blend": "over", "material": {"color": [0.2, 0.4, 1, 0.5]}})
+    return {"softras_scene": 1, "width": 200, "height": 150, "background": [0.25, 0.5, 0.75, 0.8],
+            "camera": {"projection": "perspective", "fov_y": 60, "near": 0.1, "far": 100, "eye": [0, 0, 3],
+                       "target": [0, 0, 0]},
+            "nodes": nodes}
+
+
+@pytest.mark.parametrize("samples, pattern, framebuffer", [(1, None, None), (4, None, None), (1, None, "rgba32f"),
+                                                          (3, "halton", "rgba32f")])
+def test_tiles_cleared_where_first_drawn_give_the_stages_bytes(samples, pattern, framebuffer, monkeypatch):
+    """The framebuffer's tiles are cleared where a draw first reaches them,
+    the others before the line draw and at the end (or, for a one-sample
+    picture, written as the background: `softras.kernels.ops._tiles_out`),
+    with one share and with two: the stages' bytes, and every tile cleared
+    exactly once."""
+    scene = softras.load_scene(tiles_scene())
+    options = dict(precision="gl", samples=samples, pattern=pattern, framebuffer=framebuffer)
+    general = render_scene(scene, fast_path=False, **options)
+    render_scene(scene, **options)          # (first: the kernels' preparation draws scenes of its own)
+    cleared = []
+    real_clear = k_ops._clear_fresh
+
+    def clear_fresh(fb, tiles_x, rgba32f):
+        cleared.append(int(fb[3].sum()))
+        real_clear(fb, tiles_x, rgba32f)
+
+    monkeypatch.setattr(fastpath, "_clear_fresh", clear_fresh)
+    for threads in (1, 2):
+        monkeypatch.setattr(fastpath.numba, "get_num_threads", lambda threads=threads: threads)
+        cleared.clear()
+        fast = render_scene(scene, **options)
+        assert np.array_equal(general, fast, equal_nan=True), f"{threads} shares"
+        # (Before the line: the tiles the first 20 quads did not reach; at
+        # the end nothing is left, or a one-sample RGBA8 picture has no end.)
+        expected = [12 - 3] + ([] if samples == 1 and framebuffer is None else [0])
+        assert cleared == expected, cleared

@@ -206,13 +206,21 @@ def test_float_resolve_equals_the_stages_resolve(samples):
     assert not differing(expected, out).any()
 
 
-def test_clear_floats_stores_the_stages_background():
-    """`clear_floats` fills every sample with the premultiplied background
-    rounded to float32, as the stages' buffer holds it."""
-    from softras.kernels.ops import clear_floats
+def test_clearing_every_tile_stores_the_stages_background():
+    """`_clear_fresh` of a framebuffer no draw reached fills every sample with
+    the premultiplied background as the stages' buffer holds it (rounded
+    to float32 for rgba32f; its RGBA8 bytes otherwise), depth with 1.0,
+    in tiles that do not divide the picture."""
+    from softras.kernels.ops import _clear_fresh, new_framebuffer
+    from softras.kernels.setup import TILE
     background = np.array([0.1, 0.7, 1.0 / 3.0, 0.3])
-    color, depth = np.empty((3, 5, 2, 4), np.float32), np.empty((3, 5, 2), np.int32)
-    clear_floats(color, depth, ops.premultiplied(background))
-    expected, _ = ops.new_framebuffer(5, 3, 2, background, quantize=False)
-    assert not differing(expected.astype(np.float32), color).any()
-    assert (depth == (1 << ops.DEPTH_BITS) - 1).all()
+    height, width = TILE + 3, 2 * TILE + 5
+    expected, _ = ops.new_framebuffer(width, height, 2, background, quantize=False)
+    for dtype in (np.float32, np.uint8):
+        color, depth = np.full((height, width, 2, 4), 7, dtype), np.zeros((height, width, 2), np.int32)
+        fb = new_framebuffer(color, depth, ops.premultiplied(background))
+        assert fb.fresh.tolist() == [1] * 6
+        _clear_fresh(tuple(fb), 3, dtype == np.float32)
+        want = expected.astype(np.float32) if dtype == np.float32 else ops.unorm8_bytes(expected)
+        assert not differing(want, color).any() and not fb.fresh.any()
+        assert (depth == (1 << ops.DEPTH_BITS) - 1).all()

@@ -103,8 +103,8 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import (NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs,
                                    viewing)
-from softras.kernels.ops import (LESS, NO_FLOATS, NO_WORDS, Framebuffer, _blend_word, _depth_k, _depth_pass_k,
-                                 _depth_test_lanes, _uses_depth, _write_lanes, clear, clear_floats)
+from softras.kernels.ops import (LESS, Framebuffer, _blend_word, _clear_fresh, _clear_tile, _depth_k, _depth_pass_k,
+                                 _depth_test_lanes, _tiles_out, _uses_depth, _write_lanes, new_framebuffer)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _block_test, _edges, _fill_bins, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
 from softras.kernels.rgba32f import _float_fragments, _row_floats
@@ -214,11 +214,27 @@ def render_samples(scene: Scene, positions: np.ndarray, *, texture_fixed_point: 
     return sampling.in_passes(positions, render_pass)
 
 
+def render_picture(scene: Scene, position: np.ndarray, *, texture_fixed_point: bool = True,
+                   texture_filter=None) -> np.ndarray:
+    """The picture of a scene that `unsupported` accepts at one sample a pixel
+    (position (1, 2) in [0, 1)) into an RGBA8 framebuffer: (H, W, 4) uint8,
+    row 0 = the top, the bytes of
+    ``softras.pipeline.ops.resolve_llvmpipe_bytes(render_samples(...))``.
+    The last batch's shares copy the tiles they drew into it, and the
+    background into the tiles no draw reached, without clearing those
+    (`softras.kernels.ops._tiles_out`)."""
+    check_sample_memory(scene, 1, SAMPLE_BYTES)
+    return _render_pass(scene, position, texture_fixed_point, True, texture_filter, True, picture=True)
+
+
 def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool, reuse: bool,
-                 texture_filter=None, rgba8: bool = True) -> np.ndarray:
+                 texture_filter=None, rgba8: bool = True, picture: bool = False) -> np.ndarray:
     """`render_samples` of one pass's positions (S, 2): the
     draws into this pass's framebuffer, (H, W, S, 4) uint8 colour (float32
-    unless rgba8)."""
+    unless rgba8); with ``picture`` (one sample, RGBA8) `render_picture`'s
+    picture instead.  The framebuffer's tiles are cleared where a draw
+    first reaches them (`softras.kernels.ops.Framebuffer`), the others
+    before a line draw (which may draw anywhere) and at the end."""
     offsets, _ = setup.sample_offsets(positions, "gl")
     shape = (scene.height, scene.width, len(positions))
     depth = _scratch.take("depth", shape, np.int32)
@@ -230,12 +246,8 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
     # (The sample box once a pass, in Python: numba's array min and max need
     # its reference counting, which the tile drivers are compiled without.)
     samples = Samples(offsets, positions, np.array(_sample_box.py_func(offsets), np.int64))
-    if rgba8:
-        clear(color, depth, ops.unorm8_bytes(ops.premultiplied(scene.background)))
-        fb = Framebuffer(color.view(np.uint32).reshape(shape), depth, NO_FLOATS)
-    else:
-        clear_floats(color, depth, ops.premultiplied(scene.background))
-        fb = Framebuffer(NO_WORDS, depth, color)
+    fb = new_framebuffer(color, depth, ops.premultiplied(scene.background))
+    tiles_x = (scene.width + TILE - 1) // TILE
     draws = ordered_draws(scene)
     # (What every draw of the pass reads: the eye and the lit draws' normal
     # rows, None when unlit, and the camera's P @ V, found once a pass.)
@@ -250,13 +262,19 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
             draw_batch(batch)
             batch, batched = [], 0
         if lines:
+            _clear_fresh(tuple(fb), tiles_x, not rgba8)
             draw_lines(scene, draw, fb, positions)
             continue
         work = set_up_triangles(this_pass, draw, len(batch))
         if work is not None:
             batch.append(work)
             batched += work.triangles
+    if picture:
+        out = np.empty((scene.height, scene.width, 4), np.uint8)
+        draw_batch(batch, (tuple(fb), tiles_x, out.view(np.uint32).reshape(scene.height, scene.width)))
+        return out
     draw_batch(batch)
+    _clear_fresh(tuple(fb), tiles_x, not rgba8)
     return color
 
 
@@ -290,37 +308,47 @@ MAX_BATCH = 32
 BATCH_TRIANGLES = 8192
 
 
-def draw_batch(batch: list) -> None:
+def draw_batch(batch: list, picture: tuple | None = None) -> None:
     """Draw the set-up triangle draws of ``batch`` (`TileWork`) in order, with
     one hand-off to the threads for all of them: each share draws the
     draws in turn, each in the tiles it owns, taking any tile nobody has
     taken yet (`tile_owners`, `softras.kernels.threads._owns`), so a
     share that starts late or draws slower takes fewer.  A tile belongs to
     one share for the whole batch, so its pixels see the draws in order on
-    one thread: the bytes of drawing them one by one."""
-    if not batch:
+    one thread: the bytes of drawing them one by one.
+
+    picture: for a pass's last batch, (the `Framebuffer` as a tuple, tiles
+    across, the picture (H, W) uint32): then each share, its draws drawn,
+    copies the tiles it owns or takes into the picture
+    (`softras.kernels.ops._tiles_out`), with the batch empty too."""
+    if not batch and picture is None:
         return
-    n_shares = shares(batch, numba.get_num_threads())
-    owners = tile_owners(batch, n_shares)
+    n_tiles = len(picture[0][3]) if picture is not None else len(batch[0].records[0][0]) - 1
+    extra = 0.0 if picture is None else OUT_PIXEL_NS * picture[2].size
+    n_shares = shares(batch, numba.get_num_threads(), extra)
+    owners = tile_owners(n_tiles, n_shares)
 
     def share(r):
         # One share's lanes for the whole batch (one pass: one sample count),
         # carried from draw to draw as from block to block within a draw:
         # the drivers write every lane they read (tests/test_threads.py
         # draws with lanes full of junk).
-        lanes = lane_buffers(batch[0].n_samples)
-        for work in batch:
-            work.driver(*work.records, lanes, r, owners)
+        if batch:
+            lanes = lane_buffers(batch[0].n_samples)
+            for work in batch:
+                work.driver(*work.records, lanes, r, owners)
+        if picture is not None:
+            fb, tiles_x, out = picture
+            _tiles_out(fb, tiles_x, r, owners, out)
 
     on_threads(share, n_shares)
 
 
-def tile_owners(batch: list, n_shares: int) -> np.ndarray:
-    """The table the shares of a batch take its tiles in
+def tile_owners(n_tiles: int, n_shares: int) -> np.ndarray:
+    """The table the shares of a batch take its n_tiles tiles in
     (`softras.kernels.threads._owns`): int64 (tiles,) of -1 (nobody's yet)
     for more than one share, else `ONE_SHARE`."""
-    bin_start = batch[0].records[0][0]          # (tiles + 1 entries; every draw of a pass has the same tiles)
-    return np.full(len(bin_start) - 1, -1, np.int64) if n_shares > 1 else ONE_SHARE
+    return np.full(n_tiles, -1, np.int64) if n_shares > 1 else ONE_SHARE
 
 
 def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
@@ -483,6 +511,10 @@ BOX_PIXEL_NS = 0.75
 HAND_OFF_NS = 50_000
 HAND_OFF_NS_PER_DRAW = 3_000
 
+# The picture's copy by tiles (`softras.kernels.ops._tiles_out`), ns a
+# pixel on one thread: 0.44 ms at 1024^2 (docs/speed.md, "Fiftieth round").
+OUT_PIXEL_NS = 0.4
+
 
 def draw_work(binned: int, box_pixels: int, heavy: bool, n_samples: int) -> float:
     """The estimated ns of drawing a set-up draw on one thread: ``binned``
@@ -492,11 +524,11 @@ def draw_work(binned: int, box_pixels: int, heavy: bool, n_samples: int) -> floa
     return (BINNED_NS * binned + BOX_PIXEL_NS * box_pixels) * (4 if heavy else 1) * (2 if n_samples > 1 else 1)
 
 
-def shares(batch: list, n_threads: int) -> int:
+def shares(batch: list, n_threads: int, extra: float = 0.0) -> int:
     """How many threads draw a batch of `TileWork`: n_threads where a share of
-    the estimated work (`draw_work`) takes longer than handing a share over
-    (`HAND_OFF_NS`), else one."""
-    total = sum(work.work for work in batch)
+    the estimated work (`draw_work`, and ``extra`` ns: the picture's copy)
+    takes longer than handing a share over (`HAND_OFF_NS`), else one."""
+    total = sum(work.work for work in batch) + extra
     return n_threads if total / n_threads > HAND_OFF_NS + HAND_OFF_NS_PER_DRAW * len(batch) else 1
 
 
@@ -592,6 +624,10 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
         for tile in range(n_tiles):
             if bins_r.start[tile] == bins_r.start[tile + 1] or not _owns(owners, tile, r):
                 continue                # (no triangle there, nor the tile functions' set-up; or another share's)
+            if fb_r.fresh[tile]:        # (the pass's first draw here: `softras.kernels.ops.Framebuffer`)
+                _clear_tile(tile, bins_r.tiles_x, fb_r.color32, fb_r.depth, fb_r.color_f, fb_r.clear_word,
+                            fb_r.clear_f, state_r.rgba32f)
+                fb_r.fresh[tile] = 0
             if textured and n_samples == 1:
                 _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler_r, tex_r, map_sampler_r,
                                map_r, lights, lighting, lanes_r, n_samples)

@@ -27,6 +27,9 @@ import numpy as np
 
 from softras.kernels.lanes import _LI_COV, _LI_DST, _LI_PASS, _LI_PIX, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _ONE_LANES, _spread, _unspread
+from softras.kernels.setup import TILE
+from softras.kernels.stamp import sources_stamp
+from softras.kernels.threads import _owns
 from softras.pipeline import ops as ops_stage
 from softras.pipeline.ops import _blend, blend_byte
 
@@ -39,9 +42,19 @@ LESS = ops_stage.DEPTH_FUNCS["less"]                   # (the common depth test:
 # 4) float32 colour buffer of an rgba32f framebuffer.  A pass has one of
 # the two colour buffers; the other is a (1, 1, 1) placeholder (`NO_WORDS`,
 # `NO_FLOATS`), and `softras.kernels.draw.DrawState`'s rgba32f says which.
-Framebuffer = namedtuple("Framebuffer", ["color32", "depth", "color_f"])
+# The buffers are cleared tile by tile (TILE x TILE pixels, row-major, as
+# the tile drivers bin them), by the share that first draws in a tile
+# (`_clear_tile`), as llvmpipe's rasterizer threads clear their tiles: fresh
+# (tiles,) uint8 is 1 for a tile not cleared yet, and the clear values are
+# clear_word (1,) uint32 (the background's RGBA8 word) and clear_f (4,)
+# float32 (its floats).  `_clear_fresh` clears the tiles no draw has
+# reached, before anything reads the whole buffer.
+Framebuffer = namedtuple("Framebuffer", ["color32", "depth", "color_f", "fresh", "clear_word", "clear_f"])
 NO_WORDS = np.zeros((1, 1, 1), np.uint32)
 NO_FLOATS = np.zeros((1, 1, 1, 4), np.float32)
+NO_CLEAR_WORD = np.zeros(1, np.uint32)
+NO_CLEAR_F = np.zeros(4, np.float32)
+DEPTH_CLEAR = np.int32(DEPTH_SCALE)          # (the depth 1.0, as k: `softras.pipeline.ops.new_framebuffer`)
 
 
 def holds_floats(fb) -> bool:
@@ -49,29 +62,107 @@ def holds_floats(fb) -> bool:
     return fb.color_f is not NO_FLOATS
 
 
+def new_framebuffer(color: np.ndarray, depth: np.ndarray, background) -> Framebuffer:
+    """`softras.pipeline.ops.new_framebuffer` in the compiled path's storage,
+    to be cleared tile by tile: the colour buffer (H, W, S, 4), uint8 or
+    float32 (an rgba32f framebuffer), and depth (H, W, S) int32, as they
+    are (their tiles all fresh), with the premultiplied background (4,) as
+    the clear values: its RGBA8 bytes (`softras.pipeline.ops.unorm8_bytes`)
+    as one word, or its floats rounded to float32 as the stages' buffer
+    holds them (`softras.pipeline.render.new_pass_framebuffer`)."""
+    height, width = depth.shape[:2]
+    fresh = np.ones(((height + TILE - 1) // TILE) * ((width + TILE - 1) // TILE), np.uint8)
+    if color.dtype == np.uint8:
+        word = np.ascontiguousarray(ops_stage.unorm8_bytes(background), np.uint8).view(np.uint32)
+        return Framebuffer(color.view(np.uint32).reshape(depth.shape), depth, NO_FLOATS, fresh, word, NO_CLEAR_F)
+    return Framebuffer(NO_WORDS, depth, color, fresh, NO_CLEAR_WORD,
+                       np.asarray(background, np.float64).astype(np.float32))
 
-def clear(color, depth, clear_bytes):
-    """`softras.pipeline.ops.new_framebuffer` in the compiled path's storage: fill
-    the byte colour buffer (H, W, S, 4) with clear_bytes (4,) uint8 and depth
-    (H, W, S) int32 with 1 (DEPTH_SCALE, see the module docstring).
 
-    numpy's fill of the buffer seen as RGBA8 words: a third of the time of a
-    parallel numba loop, which also pays the wake-up of its threads."""
-    color.view(np.uint32).fill(np.ascontiguousarray(clear_bytes, np.uint8).view(np.uint32)[0])
-    depth.fill(int(DEPTH_SCALE))
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f):
+    """Clear one tile of a framebuffer's buffers (`Framebuffer`): its
+    samples' depth to 1.0 (`DEPTH_CLEAR`) and their colour to the clear
+    word, or with ``rgba32f`` to the clear floats (as two 64-bit words a
+    sample).  Each of the tile's rows is one run of the buffers seen flat
+    (they are C-contiguous), filled as a slice: a whole 1024^2 RGBA8
+    framebuffer in 0.29 ms on one thread where numpy's fills took 0.23;
+    indexed by (y, x, s), the sample count unknown until run time, 5.1
+    ms (docs/speed.md, "Fiftieth round")."""
+    height, width, count = depth.shape
+    x0, y0 = (tile % tiles_x) * TILE, (tile // tiles_x) * TILE
+    x1, y1 = min(x0 + TILE, width), min(y0 + TILE, height)
+    depths = depth.reshape(depth.size)
+    if rgba32f:
+        halves = color_f.reshape(color_f.size).view(np.uint64)
+        low, high = clear_f.view(np.uint64)[0], clear_f.view(np.uint64)[1]
+        for y in range(y0, y1):
+            first, last = (y * width + x0) * count, (y * width + x1) * count
+            depths[first:last] = DEPTH_CLEAR
+            row = halves[2 * first:2 * last]
+            for i in range(0, row.size, 2):
+                row[i] = low
+                row[i + 1] = high
+    else:
+        words, word = color32.reshape(color32.size), clear_word[0]
+        for y in range(y0, y1):
+            first, last = (y * width + x0) * count, (y * width + x1) * count
+            depths[first:last] = DEPTH_CLEAR
+            words[first:last] = word
 
 
-def clear_floats(color, depth, clear_rgba):
-    """`clear` of an rgba32f framebuffer: the float32 colour buffer (H, W, S,
-    4) filled with clear_rgba (4,), the premultiplied background rounded to
-    float32 as the stages' buffer holds it (`softras.pipeline.render.new_pass_framebuffer`).
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _clear_fresh(fb, tiles_x, rgba32f):
+    """`_clear_tile` of every tile of the `Framebuffer` fb (as a tuple) that
+    is still fresh, marking it cleared."""
+    color32, depth, color_f, fresh, clear_word, clear_f = fb
+    for tile in range(fresh.shape[0]):
+        if fresh[tile]:
+            _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f)
+            fresh[tile] = 0
 
-    numpy's fill of the buffer seen as one 16-byte item a sample (the four
-    floats' bytes as they are): 0.07 ms at 512^2 where assigning the (4,)
-    row to every sample took 1.2 ms."""
-    value = np.ascontiguousarray(np.asarray(clear_rgba, np.float64).astype(np.float32))
-    color.view("V16").fill(value.view("V16")[0])
-    depth.fill(int(DEPTH_SCALE))
+
+def _make_tiles_out(sources: str):
+    """The kernel `_tiles_out`, cached under the key ``sources``
+    (`softras.kernels.stamp.sources_stamp`, a closure variable): it inlines
+    `softras.kernels.threads._owns`."""
+
+    @numba.njit(cache=True, nogil=True, error_model="numpy")
+    def _tiles_out(fb, tiles_x, r, owners, picture):
+        """Share r's part of a one-sample RGBA8 pass's picture: every tile it
+        owns or takes (`softras.kernels.threads._owns`, the last batch's
+        owners) copied into ``picture`` (H, W) uint32, the tile's rows upside
+        down (row 0 the top of the picture; the buffer's row 0 is GL's bottom),
+        or for a tile no draw has reached (fresh) the clear word, without
+        clearing the tile.  The bytes of
+        `softras.pipeline.ops.resolve_llvmpipe_bytes` of the cleared and drawn
+        buffer at one sample.  (Rows as slices of the arrays seen flat, as
+        `_clear_tile`.)"""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        color32, depth, color_f, fresh, clear_word, clear_f = fb
+        height, width = picture.shape
+        words = color32.reshape(color32.size)
+        pixels = picture.reshape(picture.size)
+        word = clear_word[0]
+        for tile in range(fresh.shape[0]):
+            if not _owns(owners, tile, r):
+                continue
+            x0, y0 = (tile % tiles_x) * TILE, (tile // tiles_x) * TILE
+            x1, y1 = min(x0 + TILE, width), min(y0 + TILE, height)
+            for y in range(y0, y1):
+                at, to = y * width + x0, (height - 1 - y) * width + x0
+                row = pixels[to:to + x1 - x0]
+                if fresh[tile]:
+                    row[:] = word
+                else:
+                    drawn = words[at:at + x1 - x0]
+                    for x in range(x1 - x0):    # (an array assigned to a slice is copied first: 3x the time)
+                        row[x] = drawn[x]
+
+    return _tiles_out
+
+
+_tiles_out = _make_tiles_out(sources_stamp())
 
 
 @numba.njit(cache=True, inline="always")

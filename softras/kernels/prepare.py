@@ -375,6 +375,8 @@ def _compile(variant) -> None:
         scene = load_scene(preparation_scene(samples or 1, textured, lines=False))    # (a scene has 1 or 4)
         assert draw.unsupported(scene, precision="gl", clipping=None) is None
         stored = draw.render_samples(scene, positions)
+        if len(positions) == 1:     # (a one-sample picture's copy, `softras.kernels.ops._tiles_out`)
+            draw.render_picture(scene, positions)
         if len(positions) > 1:      # the box resolves: llvmpipe's (GL's patterns) and the exact mean's
             ops.resolve_llvmpipe_bytes(stored)
             ops.resolve_exact_bytes(stored)
