@@ -323,8 +323,10 @@ def draw_batch(batch: list, picture: tuple | None = None) -> None:
     (`softras.kernels.ops._tiles_out`), with the batch empty too."""
     if not batch and picture is None:
         return
-    n_tiles = len(picture[0][3]) if picture is not None else len(batch[0].records[0][0]) - 1
-    extra = 0.0 if picture is None else OUT_PIXEL_NS * picture[2].size
+    if picture is None:
+        n_tiles, extra = len(batch[0].records[0][0]) - 1, 0.0      # (bin_start: a tile's first entry, and the end)
+    else:
+        n_tiles, extra = len(picture[0][3]), OUT_PIXEL_NS * picture[2].size    # (the Framebuffer's fresh)
     n_shares = shares(batch, numba.get_num_threads(), extra)
     owners = tile_owners(n_tiles, n_shares)
 

@@ -79,53 +79,56 @@ def new_framebuffer(color: np.ndarray, depth: np.ndarray, background) -> Framebu
                        np.asarray(background, np.float64).astype(np.float32))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f):
-    """Clear one tile of a framebuffer's buffers (`Framebuffer`): its
-    samples' depth to 1.0 (`DEPTH_CLEAR`) and their colour to the clear
-    word, or with ``rgba32f`` to the clear floats (as two 64-bit words a
-    sample).  Each of the tile's rows is one run of the buffers seen flat
-    (they are C-contiguous), filled as a slice: a whole 1024^2 RGBA8
-    framebuffer in 0.29 ms on one thread where numpy's fills took 0.23;
-    indexed by (y, x, s), the sample count unknown until run time, 5.1
-    ms (docs/speed.md, "Fiftieth round")."""
-    height, width, count = depth.shape
-    x0, y0 = (tile % tiles_x) * TILE, (tile // tiles_x) * TILE
-    x1, y1 = min(x0 + TILE, width), min(y0 + TILE, height)
-    depths = depth.reshape(depth.size)
-    if rgba32f:
-        halves = color_f.reshape(color_f.size).view(np.uint64)
-        low, high = clear_f.view(np.uint64)[0], clear_f.view(np.uint64)[1]
-        for y in range(y0, y1):
-            first, last = (y * width + x0) * count, (y * width + x1) * count
-            depths[first:last] = DEPTH_CLEAR
-            row = halves[2 * first:2 * last]
-            for i in range(0, row.size, 2):
-                row[i] = low
-                row[i + 1] = high
-    else:
-        words, word = color32.reshape(color32.size), clear_word[0]
-        for y in range(y0, y1):
-            first, last = (y * width + x0) * count, (y * width + x1) * count
-            depths[first:last] = DEPTH_CLEAR
-            words[first:last] = word
+def _make_tile_kernels(sources: str):
+    """The kernels `_clear_tile`, `_clear_fresh` and `_tiles_out`, cached
+    under the key ``sources`` (`softras.kernels.stamp.sources_stamp`, a
+    closure variable): they read `softras.kernels.setup.TILE` and the depth
+    bits of `softras.pipeline.ops`, and `_tiles_out` inlines
+    `softras.kernels.threads._owns`.  (Keyed on ops.py alone, an edit of
+    those would leave a tile driver calling a stale clear.)"""
 
+    @numba.njit(cache=True, nogil=True, error_model="numpy")
+    def _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f):
+        """Clear one tile of a framebuffer's buffers (`Framebuffer`): its
+        samples' depth to 1.0 (`DEPTH_CLEAR`) and their colour to the clear
+        word, or with ``rgba32f`` to the clear floats (as two 64-bit words a
+        sample).  Each of the tile's rows is one run of the buffers seen flat
+        (they are C-contiguous), filled as a slice: a whole 1024^2 RGBA8
+        framebuffer in 0.29 ms on one thread where numpy's fills took 0.23;
+        indexed by (y, x, s), the sample count unknown until run time, 5.1
+        ms (docs/speed.md, "Fiftieth round")."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        height, width, count = depth.shape
+        x0, y0 = (tile % tiles_x) * TILE, (tile // tiles_x) * TILE
+        x1, y1 = min(x0 + TILE, width), min(y0 + TILE, height)
+        depths = depth.reshape(depth.size)
+        if rgba32f:
+            halves = color_f.reshape(color_f.size).view(np.uint64)
+            low, high = clear_f.view(np.uint64)[0], clear_f.view(np.uint64)[1]
+            for y in range(y0, y1):
+                first, last = (y * width + x0) * count, (y * width + x1) * count
+                depths[first:last] = DEPTH_CLEAR
+                row = halves[2 * first:2 * last]
+                for i in range(0, row.size, 2):
+                    row[i] = low
+                    row[i + 1] = high
+        else:
+            words, word = color32.reshape(color32.size), clear_word[0]
+            for y in range(y0, y1):
+                first, last = (y * width + x0) * count, (y * width + x1) * count
+                depths[first:last] = DEPTH_CLEAR
+                words[first:last] = word
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _clear_fresh(fb, tiles_x, rgba32f):
-    """`_clear_tile` of every tile of the `Framebuffer` fb (as a tuple) that
-    is still fresh, marking it cleared."""
-    color32, depth, color_f, fresh, clear_word, clear_f = fb
-    for tile in range(fresh.shape[0]):
-        if fresh[tile]:
-            _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f)
-            fresh[tile] = 0
-
-
-def _make_tiles_out(sources: str):
-    """The kernel `_tiles_out`, cached under the key ``sources``
-    (`softras.kernels.stamp.sources_stamp`, a closure variable): it inlines
-    `softras.kernels.threads._owns`."""
+    @numba.njit(cache=True, nogil=True, error_model="numpy")
+    def _clear_fresh(fb, tiles_x, rgba32f):
+        """`_clear_tile` of every tile of the `Framebuffer` fb (as a tuple) that
+        is still fresh, marking it cleared."""
+        stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        color32, depth, color_f, fresh, clear_word, clear_f = fb
+        for tile in range(fresh.shape[0]):
+            if fresh[tile]:
+                _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f)
+                fresh[tile] = 0
 
     @numba.njit(cache=True, nogil=True, error_model="numpy")
     def _tiles_out(fb, tiles_x, r, owners, picture):
@@ -159,10 +162,10 @@ def _make_tiles_out(sources: str):
                     for x in range(x1 - x0):    # (an array assigned to a slice is copied first: 3x the time)
                         row[x] = drawn[x]
 
-    return _tiles_out
+    return _clear_tile, _clear_fresh, _tiles_out
 
 
-_tiles_out = _make_tiles_out(sources_stamp())
+_clear_tile, _clear_fresh, _tiles_out = _make_tile_kernels(sources_stamp(ops_stage))
 
 
 @numba.njit(cache=True, inline="always")
