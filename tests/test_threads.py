@@ -102,23 +102,18 @@ def test_one_draw_with_its_tiles_taken_as_shares_ask_gives_the_bytes_of_one_shar
     monkeypatch.setattr(draw, "shares", lambda batch, n_threads, extra=0.0: 1)
     one = softras.render(scene, samples=samples, pattern=pattern)
     monkeypatch.setattr(draw, "shares", lambda batch, n_threads, extra=0.0: n_threads)
-    tables, batches = [], []
-    real_owners, real_batch = draw.tile_owners, draw.draw_batch
+    tables = []
+    real_owners = draw.tile_owners
 
-    def owners(n_tiles, n_shares):
-        tables.append(real_owners(n_tiles, n_shares))
-        return tables[-1]
-
-    def draw_batch(batch, picture=None):
-        batches.append(batch[0].records[0][0])
-        real_batch(batch, picture)
+    def owners(batch, n_shares):
+        tables.append((real_owners(batch, n_shares), batch[0].records[0][0]))
+        return tables[-1][0]
 
     monkeypatch.setattr(draw, "tile_owners", owners)
-    monkeypatch.setattr(draw, "draw_batch", draw_batch)
     for n in (2, 3):
         monkeypatch.setattr(draw.numba, "get_num_threads", lambda n=n: n)
         assert np.array_equal(softras.render(scene, samples=samples, pattern=pattern), one), f"{n} shares"
-        table, bin_start = tables[-1], batches[-1]
+        table, bin_start = tables[-1]
         with_triangles = bin_start[1:] > bin_start[:-1]
         owned = (table >= 0) & (table < n)
         # (At one sample the shares then copy every tile into the picture,

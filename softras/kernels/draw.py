@@ -222,7 +222,8 @@ def render_picture(scene: Scene, position: np.ndarray, *, texture_fixed_point: b
     ``softras.pipeline.ops.resolve_llvmpipe_bytes(render_samples(...))``.
     The last batch's shares copy the tiles they drew into it, and the
     background into the tiles no draw reached, without clearing those
-    (`softras.kernels.ops._tiles_out`)."""
+    (`softras.kernels.ops._tiles_out`); when the last draw is a line
+    draw, the buffer is copied after it, as `render_samples`' is resolved."""
     check_sample_memory(scene, 1, SAMPLE_BYTES)
     return _render_pass(scene, position, texture_fixed_point, True, texture_filter, True, picture=True)
 
@@ -269,13 +270,15 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
         if work is not None:
             batch.append(work)
             batched += work.triangles
-    if picture:
+    if picture and batch:
         out = np.empty((scene.height, scene.width, 4), np.uint8)
         draw_batch(batch, (tuple(fb), tiles_x, out.view(np.uint32).reshape(scene.height, scene.width)))
         return out
     draw_batch(batch)
     _clear_fresh(tuple(fb), tiles_x, not rgba8)
-    return color
+    # (With no triangle draw after the last line draw there is no batch to
+    # copy the tiles in, and numpy's copy by rows is the faster on one thread.)
+    return ops.resolve_llvmpipe_bytes(color) if picture else color
 
 
 # What every triangle draw of a pass reads (`set_up_triangles`): the scene,
@@ -320,25 +323,21 @@ def draw_batch(batch: list, picture: tuple | None = None) -> None:
     picture: for a pass's last batch, (the `Framebuffer` as a tuple, tiles
     across, the picture (H, W) uint32): then each share, its draws drawn,
     copies the tiles it owns or takes into the picture
-    (`softras.kernels.ops._tiles_out`), with the batch empty too."""
-    if not batch and picture is None:
+    (`softras.kernels.ops._tiles_out`)."""
+    if not batch:
         return
-    if picture is None:
-        n_tiles, extra = len(batch[0].records[0][0]) - 1, 0.0      # (bin_start: a tile's first entry, and the end)
-    else:
-        n_tiles, extra = len(picture[0][3]), OUT_PIXEL_NS * picture[2].size    # (the Framebuffer's fresh)
+    extra = 0.0 if picture is None else OUT_PIXEL_NS * picture[2].size
     n_shares = shares(batch, numba.get_num_threads(), extra)
-    owners = tile_owners(n_tiles, n_shares)
+    owners = tile_owners(batch, n_shares)
 
     def share(r):
         # One share's lanes for the whole batch (one pass: one sample count),
         # carried from draw to draw as from block to block within a draw:
         # the drivers write every lane they read (tests/test_threads.py
         # draws with lanes full of junk).
-        if batch:
-            lanes = lane_buffers(batch[0].n_samples)
-            for work in batch:
-                work.driver(*work.records, lanes, r, owners)
+        lanes = lane_buffers(batch[0].n_samples)
+        for work in batch:
+            work.driver(*work.records, lanes, r, owners)
         if picture is not None:
             fb, tiles_x, out = picture
             _tiles_out(fb, tiles_x, r, owners, out)
@@ -346,11 +345,12 @@ def draw_batch(batch: list, picture: tuple | None = None) -> None:
     on_threads(share, n_shares)
 
 
-def tile_owners(n_tiles: int, n_shares: int) -> np.ndarray:
-    """The table the shares of a batch take its n_tiles tiles in
+def tile_owners(batch: list, n_shares: int) -> np.ndarray:
+    """The table the shares of a batch take its tiles in
     (`softras.kernels.threads._owns`): int64 (tiles,) of -1 (nobody's yet)
     for more than one share, else `ONE_SHARE`."""
-    return np.full(n_tiles, -1, np.int64) if n_shares > 1 else ONE_SHARE
+    bin_start = batch[0].records[0][0]          # (tiles + 1 entries; every draw of a pass has the same tiles)
+    return np.full(len(bin_start) - 1, -1, np.int64) if n_shares > 1 else ONE_SHARE
 
 
 def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:
