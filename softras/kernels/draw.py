@@ -514,8 +514,8 @@ HAND_OFF_NS = 50_000
 HAND_OFF_NS_PER_DRAW = 3_000
 
 # The picture's copy by tiles (`softras.kernels.ops._tiles_out`), ns a
-# pixel on one thread: 0.44 ms at 1024^2 (docs/speed.md, "Fiftieth round").
-OUT_PIXEL_NS = 0.4
+# pixel on one thread: 0.28 ms at 1024^2 (docs/speed.md, "Fiftieth round").
+OUT_PIXEL_NS = 0.27
 
 
 def draw_work(binned: int, box_pixels: int, heavy: bool, n_samples: int) -> float:
