@@ -1274,9 +1274,9 @@ def test_tiles_cleared_where_first_drawn_give_the_stages_bytes(samples, pattern,
     cleared = []
     real_clear = k_ops._clear_fresh
 
-    def clear_fresh(fb, tiles_x, rgba32f):
+    def clear_fresh(fb, rgba32f):
         cleared.append(int(fb[3].sum()))
-        real_clear(fb, tiles_x, rgba32f)
+        real_clear(fb, rgba32f)
 
     monkeypatch.setattr(fastpath, "_clear_fresh", clear_fresh)
     for threads in (1, 2):

@@ -220,7 +220,7 @@ def test_clearing_every_tile_stores_the_stages_background():
         color, depth = np.full((height, width, 2, 4), 7, dtype), np.zeros((height, width, 2), np.int32)
         fb = new_framebuffer(color, depth, ops.premultiplied(background))
         assert fb.fresh.tolist() == [1] * 6
-        _clear_fresh(tuple(fb), 3, dtype == np.float32)
+        _clear_fresh(tuple(fb), dtype == np.float32)
         want = expected.astype(np.float32) if dtype == np.float32 else ops.unorm8_bytes(expected)
         assert not differing(want, color).any() and not fb.fresh.any()
         assert (depth == (1 << ops.DEPTH_BITS) - 1).all()

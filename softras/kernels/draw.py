@@ -248,7 +248,6 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
     # its reference counting, which the tile drivers are compiled without.)
     samples = Samples(offsets, positions, np.array(_sample_box.py_func(offsets), np.int64))
     fb = new_framebuffer(color, depth, ops.premultiplied(scene.background))
-    tiles_x = (scene.width + TILE - 1) // TILE
     draws = ordered_draws(scene)
     # (What every draw of the pass reads: the eye and the lit draws' normal
     # rows, None when unlit, and the camera's P @ V, found once a pass.)
@@ -263,7 +262,7 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
             draw_batch(batch)
             batch, batched = [], 0
         if lines:
-            _clear_fresh(tuple(fb), tiles_x, not rgba8)
+            _clear_fresh(tuple(fb), not rgba8)
             draw_lines(scene, draw, fb, positions)
             continue
         work = set_up_triangles(this_pass, draw, len(batch))
@@ -272,10 +271,10 @@ def _render_pass(scene: Scene, positions: np.ndarray, texture_fixed_point: bool,
             batched += work.triangles
     if picture and batch:
         out = np.empty((scene.height, scene.width, 4), np.uint8)
-        draw_batch(batch, (tuple(fb), tiles_x, out.view(np.uint32).reshape(scene.height, scene.width)))
+        draw_batch(batch, (tuple(fb), out.view(np.uint32).reshape(scene.height, scene.width)))
         return out
     draw_batch(batch)
-    _clear_fresh(tuple(fb), tiles_x, not rgba8)
+    _clear_fresh(tuple(fb), not rgba8)
     # (With no triangle draw after the last line draw there is no batch to
     # copy the tiles in, and numpy's copy by rows is the faster on one thread.)
     return ops.resolve_llvmpipe_bytes(color) if picture else color
@@ -320,13 +319,13 @@ def draw_batch(batch: list, picture: tuple | None = None) -> None:
     one share for the whole batch, so its pixels see the draws in order on
     one thread: the bytes of drawing them one by one.
 
-    picture: for a pass's last batch, (the `Framebuffer` as a tuple, tiles
-    across, the picture (H, W) uint32): then each share, its draws drawn,
+    picture: for a pass's last batch, (the `Framebuffer` as a tuple, the
+    picture (H, W) uint32): then each share, its draws drawn,
     copies the tiles it owns or takes into the picture
     (`softras.kernels.ops._tiles_out`)."""
     if not batch:
         return
-    extra = 0.0 if picture is None else OUT_PIXEL_NS * picture[2].size
+    extra = 0.0 if picture is None else OUT_PIXEL_NS * picture[1].size
     n_shares = shares(batch, numba.get_num_threads(), extra)
     owners = tile_owners(batch, n_shares)
 
@@ -339,8 +338,8 @@ def draw_batch(batch: list, picture: tuple | None = None) -> None:
         for work in batch:
             work.driver(*work.records, lanes, r, owners)
         if picture is not None:
-            fb, tiles_x, out = picture
-            _tiles_out(fb, tiles_x, r, owners, out)
+            fb, out = picture
+            _tiles_out(fb, r, owners, out)
 
     on_threads(share, n_shares)
 
@@ -627,8 +626,8 @@ def _make_draw_tiles(n_samples: int, textured: bool, sources: str):
             if bins_r.start[tile] == bins_r.start[tile + 1] or not _owns(owners, tile, r):
                 continue                # (no triangle there, nor the tile functions' set-up; or another share's)
             if fb_r.fresh[tile]:        # (the pass's first draw here: `softras.kernels.ops.Framebuffer`)
-                _clear_tile(tile, bins_r.tiles_x, fb_r.color32, fb_r.depth, fb_r.color_f, fb_r.clear_word,
-                            fb_r.clear_f, state_r.rgba32f)
+                _clear_tile(tile, fb_r.color32, fb_r.depth, fb_r.color_f, fb_r.clear_word, fb_r.clear_f,
+                            state_r.rgba32f)
                 fb_r.fresh[tile] = 0
             if textured and n_samples == 1:
                 _textured_tile(tile, bins_r, tris_r, samples_r, fb_r, state_r, sampler_r, tex_r, map_sampler_r,

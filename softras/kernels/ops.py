@@ -26,6 +26,7 @@ import numba
 import numpy as np
 
 from softras.kernels.lanes import _LI_COV, _LI_DST, _LI_PASS, _LI_PIX, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
+from softras.kernels.rasterize import _tile_columns
 from softras.kernels.rgba8 import _HALF_LANES, _LANES, _ONE_LANES, _spread, _unspread
 from softras.kernels.setup import TILE
 from softras.kernels.stamp import sources_stamp
@@ -79,6 +80,18 @@ def new_framebuffer(color: np.ndarray, depth: np.ndarray, background) -> Framebu
                        np.asarray(background, np.float64).astype(np.float32))
 
 
+@numba.njit(cache=True, inline="always")
+def _tile_rect(tile, width, height):
+    """The pixels of tile k of a width x height framebuffer (TILE x TILE
+    tiles, row-major, as `new_framebuffer` counts them and the drivers bin
+    them, `softras.kernels.rasterize._tile_columns`): first column, last
+    column + 1, first row, last row + 1."""
+    tiles_x = (width + TILE - 1) // TILE
+    x0, x_last = _tile_columns(tile, tiles_x, width)
+    y0 = (tile // tiles_x) * TILE
+    return x0, x_last + 1, y0, min(y0 + TILE, height)
+
+
 def _make_tile_kernels(sources: str):
     """The kernels `_clear_tile`, `_clear_fresh` and `_tiles_out`, cached
     under the key ``sources`` (`softras.kernels.stamp.sources_stamp`, a
@@ -92,8 +105,8 @@ def _make_tile_kernels(sources: str):
     on one thread."""
 
     @numba.njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-    def _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f):
-        """Clear one tile of a framebuffer's buffers (`Framebuffer`): its
+    def _clear_tile(tile, color32, depth, color_f, clear_word, clear_f, rgba32f):
+        """Clear one tile (`_tile_rect`) of a framebuffer's buffers (`Framebuffer`): its
         samples' depth to 1.0 (`DEPTH_CLEAR`) and their colour to the clear
         word, or with ``rgba32f`` to the clear floats (as two 64-bit words a
         sample).  Each of the tile's rows is one run of the buffers seen flat
@@ -103,8 +116,7 @@ def _make_tile_kernels(sources: str):
         ms (docs/speed.md, "Fiftieth round")."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
         height, width, count = depth.shape
-        x0, y0 = (tile % tiles_x) * TILE, (tile // tiles_x) * TILE
-        x1, y1 = min(x0 + TILE, width), min(y0 + TILE, height)
+        x0, x1, y0, y1 = _tile_rect(tile, width, height)
         depths = depth.reshape(depth.size)
         if rgba32f:
             halves = color_f.reshape(color_f.size).view(np.uint64)
@@ -124,18 +136,18 @@ def _make_tile_kernels(sources: str):
                 words[first:last] = word
 
     @numba.njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-    def _clear_fresh(fb, tiles_x, rgba32f):
+    def _clear_fresh(fb, rgba32f):
         """`_clear_tile` of every tile of the `Framebuffer` fb (as a tuple) that
         is still fresh, marking it cleared."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
         color32, depth, color_f, fresh, clear_word, clear_f = fb
         for tile in range(fresh.shape[0]):
             if fresh[tile]:
-                _clear_tile(tile, tiles_x, color32, depth, color_f, clear_word, clear_f, rgba32f)
+                _clear_tile(tile, color32, depth, color_f, clear_word, clear_f, rgba32f)
                 fresh[tile] = 0
 
     @numba.njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-    def _tiles_out(fb, tiles_x, r, owners, picture):
+    def _tiles_out(fb, r, owners, picture):
         """Share r's part of a one-sample RGBA8 pass's picture: every tile it
         owns or takes (`softras.kernels.threads._owns`, the last batch's
         owners) copied into ``picture`` (H, W) uint32, the tile's rows upside
@@ -154,8 +166,7 @@ def _make_tile_kernels(sources: str):
         for tile in range(fresh.shape[0]):
             if not _owns(owners, tile, r):
                 continue
-            x0, y0 = (tile % tiles_x) * TILE, (tile // tiles_x) * TILE
-            x1, y1 = min(x0 + TILE, width), min(y0 + TILE, height)
+            x0, x1, y0, y1 = _tile_rect(tile, width, height)
             for y in range(y0, y1):
                 at, to = y * width + x0, (height - 1 - y) * width + x0
                 row = pixels[to:to + x1 - x0]
