@@ -243,7 +243,8 @@ def test_the_exact_preparation_reaches_every_exact_kernel(tmp_path):
                                          for samples in (None, 4) for framebuffer in ("rgba8", "rgba32f")])
     for kernel in ("_DRAW", "_setup", "_corners", "_resolve_box"):           # (called from Python)
         assert before[f"softras.kernels.exact.{kernel}"] >= 1, f"the preparation did not compile exact.{kernel}"
-    assert before["softras.kernels.exact_lines._DRAW_LINES"] >= 1, "the preparation did not compile exact_lines"
+    for kernel in ("_SET_UP_LINES", "_COVER_LINES"):
+        assert before[f"softras.kernels.exact_lines.{kernel}"] >= 1, f"the preparation did not compile {kernel}"
     assert {name: n for name, n in after.items() if n != before[name]} == {}
 
 

@@ -5,7 +5,7 @@ as numpy arrays, ~300 bytes and a few dozen array passes a fragment.  Here
 a triangle draw (unlit, flat, Gouraud or Phong; textured with the GL
 filters, anisotropic included, or softras's own; normal or bump mapped;
 alpha test, every depth function and blend equation) is rasterized, shaded
-and applied by one parallel kernel (`_draw`); its vertex and clip stages
+and applied by one kernel in parallel shares (`_draw`); its vertex and clip stages
 are the stages' own functions, its set-up and corner values compiled
 mirrors (`setup_triangles`, `corner_values`); line draws take
 `softras.kernels.exact_lines`, a textured draw under ``texture_bounds``
@@ -39,9 +39,12 @@ the stages' `draw_triangles`, on the same float64 buffers;
   (`softras.kernels.ops._resolve_box`, an RGBA8 picture's bytes or an
   rgba32f picture's floats, `softras.kernels.rgba32f.resolve`).
 
-Bands of `BAND_ROWS` rows are drawn in parallel (thread r of n draws bands
-r, r + n, ...); each walks the draw's triangles in order over its own rows,
-so every pixel sees the fragments in draw order, as the stages apply them.
+Bands of `BAND_ROWS` rows are drawn in parallel, in shares on
+`softras.kernels.pool`'s threads that take the bands as they reach them
+(not a numba parallel loop: the exact variant's cold compile 45.5 -> 29 s,
+docs/speed.md, "Fifty-first round"); a band walks the draw's triangles in
+order over its own rows, so every pixel sees the fragments in draw order,
+as the stages apply them.
 
 Why one module of ~700 lines: it is one kernel (`_draw`) and the compiled
 mirrors only it calls, in the order of the stages they mirror, under one
@@ -63,11 +66,13 @@ from softras.kernels.lanes import _LF_LIT, _LF_MAP, _LF_W, _NLF
 from softras.kernels.light import NO_LIGHTING, _phong_colors, base_colors, flat_corner_colors, scene_lighting
 from softras.kernels.ops import _resolve_box, _uses_depth
 from softras.kernels import rgba32f
+from softras.kernels.pool import on_threads
 from softras.kernels.scratch import _Scratch
 from softras.kernels.setup import CULL_CODES, _depth_slopes, _made_corner, _own_vertex
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _filter_level, _nan_max, texture_tables
 from softras.kernels.texture_beyond import _beyond_texel, beyond_tables
+from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _aligned_stack, _owns, _unowned
 from softras.pipeline import libm, ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle, _sample_box
 from softras.scene import Scene
@@ -358,13 +363,16 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
     mapped = NORMAL_MAP if material.normal_map is not None else BUMP_MAP if map_name is not None else NO_MAP
     cutoff = material.alpha_cutoff
     c = np.ascontiguousarray
-    _DRAW(c(tris.window), c(tris.inv_w), c(tris.edge_a), c(tris.edge_b), c(tris.edge_x0), c(tris.edge_y0),
-          c(tris.edge_inclusive), c(tris.bbox), c(inputs.offsets, np.float64), float(inputs.unit),
-          c(inputs.positions, np.float64), shading, c(colors), lit, c(lights), tuple(lighting),
-          material.texture is not None, c(uv), sampler, texels.bytes, texels.levels, mapped, map_sampler,
-          map_texels.bytes, map_texels.levels, float(material.bump_scale), color, depth,
-          ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
-          cutoff is not None, float(cutoff or 0.0), BAND_ROWS, numba.get_num_threads())
+    args = (c(tris.window), c(tris.inv_w), c(tris.edge_a), c(tris.edge_b), c(tris.edge_x0), c(tris.edge_y0),
+            c(tris.edge_inclusive), c(tris.bbox), c(inputs.offsets, np.float64), float(inputs.unit),
+            c(inputs.positions, np.float64), shading, c(colors), lit, c(lights), tuple(lighting),
+            material.texture is not None, c(uv), sampler, texels.bytes, texels.levels, mapped, map_sampler,
+            map_texels.bytes, map_texels.levels, float(material.bump_scale), color, depth,
+            ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
+            cutoff is not None, float(cutoff or 0.0), BAND_ROWS)
+    n_threads = numba.get_num_threads()
+    owners = np.full(-(-scene.height // BAND_ROWS), -1, np.int64) if n_threads > 1 else ONE_SHARE
+    on_threads(lambda r: _DRAW(*args, owners, r), n_threads)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -652,13 +660,19 @@ def _make_draw(sources: str):
     """The exact kernel `_draw`, with the cache key ``sources``
     (`softras.kernels.stamp.sources_stamp`) as a closure variable."""
 
-    @numba.njit(cache=True, parallel=True, error_model="numpy")
+    @numba.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
     def _draw(window, inv_w, edge_a, edge_b, edge_x0, edge_y0, inclusive, bbox, offsets, unit, positions, shading,
               colors, lit, lights, lighting, textured, uv, sampler, texels, table, mapped, map_sampler, map_texels,
               map_table, bump_scale, color, depth, depth_func, depth_write, blend, alpha_test, cutoff, band_rows,
-              n_threads):
-        """One `compiled` triangle draw into the float64 buffers color (H, W,
-        S, 4) and depth (H, W, S), in bands of ``band_rows`` rows in parallel.
+              owners, r):
+        """Share r of one `compiled` triangle draw into the float64 buffers
+        color (H, W, S, 4) and depth (H, W, S): the bands of ``band_rows``
+        rows it takes (`softras.kernels.threads._owns`: owners (bands,)
+        int64, -1 where no share has taken the band yet, or ONE_SHARE), the
+        shares run at once on `softras.kernels.pool.on_threads`.  Taken as
+        the shares reach them, not in fixed shares: the pool's thread starts
+        its share up to 0.2 ms after the calling thread, and in fixed shares
+        the calling thread waited for it at every draw.
 
         window (T', 3, 3), inv_w (T', 3), edge_* (T', 3), inclusive (T', 3),
         bbox (T', 4): the `softras.pipeline.setup.TriangleSetup`'s arrays;
@@ -680,92 +694,96 @@ def _make_draw(sources: str):
         covered pixel is shaded once (at its centre) and applied per covered
         sample in order (`softras.pipeline.ops.apply_fragments`)."""
         stamp = sources                 # noqa: F841  (the cache key, `softras.kernels.stamp`)
+        _aligned_stack()
+        edge_a, edge_b, edge_x0, edge_y0 = _unowned(edge_a), _unowned(edge_b), _unowned(edge_x0), _unowned(edge_y0)
+        inclusive = _unowned(inclusive)
         height, width = color.shape[0], color.shape[1]
         n_samples = positions.shape[0]
         n_tris = window.shape[0]
         n_bands = (height + band_rows - 1) // band_rows
         write_z = depth_write and depth_func != 0
         plain = n_samples == 1 and not _uses_depth(depth_func, write_z) and not alpha_test
-        for thread in numba.prange(n_threads):
-            out_x = np.empty(band_rows * width, np.int32)
-            out_y = np.empty(band_rows * width, np.int32)
-            out_mask = np.empty(band_rows * width, np.uint32)
-            box = np.empty(4, np.int64)
-            # The fragments' rows as the tile kernels' lanes (`_phong` reads the
-            # weights and a map's normals there): their perspective weights,
-            # a normal or bump map's tangent-space normals, then Phong's own.
-            lf = np.empty((_NLF, band_rows * width))
-            weights = lf[_LF_W:_LF_W + 3]
-            tangent_normals = lf[_LF_MAP:_LF_MAP + 3]
-            shade = np.empty((4, band_rows * width))             # texels, then colours
-            uvs = np.empty((6, band_rows * width))               # (s, t) and their derivatives
-            for band in range(thread, n_bands, n_threads):
-                top = band * band_rows
-                bottom = min(top + band_rows, height) - 1
-                for t in range(n_tris):
-                    box[0], box[1] = bbox[t, 0], bbox[t, 1]
-                    box[2], box[3] = max(bbox[t, 2], top), min(bbox[t, 3], bottom)
-                    if box[2] > box[3]:
-                        continue
-                    k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets,
-                                         unit, out_x, out_y, out_mask, 0, True)
-                    # The triangle's values as scalars: corners, depth plane, corner colours
-                    # (Phong reads its corners' world positions and normals itself).
-                    corners = Corners((window[t, 0, 0], window[t, 1, 0], window[t, 2, 0]),
-                                      (window[t, 0, 1], window[t, 1, 1], window[t, 2, 1]),
-                                      (inv_w[t, 0], inv_w[t, 1], inv_w[t, 2]))
-                    x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
-                    dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
-                    cc = _corner_colors(colors, t)
-                    # The perspective weights of all k fragments first: a loop LLVM vectorises.
-                    if shading != FLAT or textured:
-                        for f in range(k):
-                            w = _weights_at(corners, out_x[f] + 0.5, out_y[f] + 0.5)
-                            weights[0, f], weights[1, f], weights[2, f] = w[0], w[1], w[2]
-                    if textured or mapped != NO_MAP:
-                        _UV_AT(k, out_x, out_y, weights, corners, _triple(uv, t, 0), _triple(uv, t, 1), uvs)
-                    if textured:
-                        _TEXELS(k, uvs, sampler, texels, table, shade)
-                    if mapped != NO_MAP:
-                        _MAP_TEXELS(k, uvs, mapped == BUMP_MAP, bump_scale, map_sampler, map_texels, map_table,
-                                    tangent_normals)
-                    # The fragments' colours, then their writes: two loops, the first free
-                    # of the writes' tests and stores (SIMD; in one loop, colours and writes
-                    # took 16 of the 8 blended layers' 30 ms); a draw that writes every
-                    # covered pixel at one sample (no depth, no alpha test) writes without
-                    # the per-sample tests (those layers: 31-40 -> 24-25 ms).
-                    if shading == PHONG:
-                        _PHONG(k, t, colors, lit, lf, lights, lighting, mapped != NO_MAP)
-                        for f in range(k):
-                            _shade(shade, f, lf[_LF_LIT, f], lf[_LF_LIT + 1, f], lf[_LF_LIT + 2, f], lf[_LF_LIT + 3, f],
-                                   textured)
-                    else:
-                        for f in range(k):
-                            # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
-                            w = (1.0, 0.0, 0.0) if shading == FLAT else (weights[0, f], weights[1, f], weights[2, f])
-                            _shade(shade, f, _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a), textured)
-                    if plain:           # (one sample, every covered pixel written: no test at all)
-                        for f in range(k):
-                            px, py, alpha = out_x[f], out_y[f], shade[3, f]
-                            for ch in range(4):
-                                color[py, px, 0, ch] = ops._blend(blend, shade[ch, f], color[py, px, 0, ch], alpha)
-                        continue
+        out_x = np.empty(band_rows * width, np.int32)
+        out_y = np.empty(band_rows * width, np.int32)
+        out_mask = np.empty(band_rows * width, np.uint32)
+        box = np.empty(4, np.int64)
+        # The fragments' rows as the tile kernels' lanes (`_phong` reads the
+        # weights and a map's normals there): their perspective weights,
+        # a normal or bump map's tangent-space normals, then Phong's own.
+        lf = np.empty((_NLF, band_rows * width))
+        weights = lf[_LF_W:_LF_W + 3]
+        tangent_normals = lf[_LF_MAP:_LF_MAP + 3]
+        shade = np.empty((4, band_rows * width))             # texels, then colours
+        uvs = np.empty((6, band_rows * width))               # (s, t) and their derivatives
+        for band in range(n_bands):
+            if not _owns(owners, band, r):
+                continue
+            top = band * band_rows
+            bottom = min(top + band_rows, height) - 1
+            for t in range(n_tris):
+                box[0], box[1] = bbox[t, 0], bbox[t, 1]
+                box[2], box[3] = max(bbox[t, 2], top), min(bbox[t, 3], bottom)
+                if box[2] > box[3]:
+                    continue
+                k = _raster_triangle(edge_a[t], edge_b[t], edge_x0[t], edge_y0[t], inclusive[t], box, offsets,
+                                     unit, out_x, out_y, out_mask, 0, True)
+                # The triangle's values as scalars: corners, depth plane, corner colours
+                # (Phong reads its corners' world positions and normals itself).
+                corners = Corners((window[t, 0, 0], window[t, 1, 0], window[t, 2, 0]),
+                                  (window[t, 0, 1], window[t, 1, 1], window[t, 2, 1]),
+                                  (inv_w[t, 0], inv_w[t, 1], inv_w[t, 2]))
+                x0, y0, z0 = window[t, 0, 0], window[t, 0, 1], window[t, 0, 2]
+                dzdx, dzdy = _depth_slopes(corners.x, corners.y, (z0, window[t, 1, 2], window[t, 2, 2]))
+                cc = _corner_colors(colors, t)
+                # The perspective weights of all k fragments first: a loop LLVM vectorises.
+                if shading != FLAT or textured:
                     for f in range(k):
-                        px, py, mask = out_x[f], out_y[f], out_mask[f]
-                        if alpha_test and shade[3, f] < cutoff:  # (`pipeline.fragment.alpha_test`: NaN kept)
+                        w = _weights_at(corners, out_x[f] + 0.5, out_y[f] + 0.5)
+                        weights[0, f], weights[1, f], weights[2, f] = w[0], w[1], w[2]
+                if textured or mapped != NO_MAP:
+                    _UV_AT(k, out_x, out_y, weights, corners, _triple(uv, t, 0), _triple(uv, t, 1), uvs)
+                if textured:
+                    _TEXELS(k, uvs, sampler, texels, table, shade)
+                if mapped != NO_MAP:
+                    _MAP_TEXELS(k, uvs, mapped == BUMP_MAP, bump_scale, map_sampler, map_texels, map_table,
+                                tangent_normals)
+                # The fragments' colours, then their writes: two loops, the first free
+                # of the writes' tests and stores (SIMD; in one loop, colours and writes
+                # took 16 of the 8 blended layers' 30 ms); a draw that writes every
+                # covered pixel at one sample (no depth, no alpha test) writes without
+                # the per-sample tests (those layers: 31-40 -> 24-25 ms).
+                if shading == PHONG:
+                    _PHONG(k, t, colors, lit, lf, lights, lighting, mapped != NO_MAP)
+                    for f in range(k):
+                        _shade(shade, f, lf[_LF_LIT, f], lf[_LF_LIT + 1, f], lf[_LF_LIT + 2, f], lf[_LF_LIT + 3, f],
+                               textured)
+                else:
+                    for f in range(k):
+                        # (A flat colour is corner 0's: 1 c + 0 0 + 0 0 is c.)
+                        w = (1.0, 0.0, 0.0) if shading == FLAT else (weights[0, f], weights[1, f], weights[2, f])
+                        _shade(shade, f, _mix(w, cc.r), _mix(w, cc.g), _mix(w, cc.b), _mix(w, cc.a), textured)
+                if plain:           # (one sample, every covered pixel written: no test at all)
+                    for f in range(k):
+                        px, py, alpha = out_x[f], out_y[f], shade[3, f]
+                        for ch in range(4):
+                            color[py, px, 0, ch] = ops._blend(blend, shade[ch, f], color[py, px, 0, ch], alpha)
+                    continue
+                for f in range(k):
+                    px, py, mask = out_x[f], out_y[f], out_mask[f]
+                    if alpha_test and shade[3, f] < cutoff:  # (`pipeline.fragment.alpha_test`: NaN kept)
+                        continue
+                    for s in range(n_samples):
+                        if not (mask >> s) & 1:
                             continue
-                        for s in range(n_samples):
-                            if not (mask >> s) & 1:
+                        if _uses_depth(depth_func, write_z):    # (`depth_at_samples` from corner 0)
+                            z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
+                            if not ops._depth_pass(depth_func, z, depth[py, px, s]):
                                 continue
-                            if _uses_depth(depth_func, write_z):    # (`depth_at_samples` from corner 0)
-                                z = z0 + dzdx * ((px + positions[s, 0]) - x0) + dzdy * ((py + positions[s, 1]) - y0)
-                                if not ops._depth_pass(depth_func, z, depth[py, px, s]):
-                                    continue
-                                if write_z:
-                                    depth[py, px, s] = z
-                            for ch in range(4):
-                                color[py, px, s, ch] = ops._blend(blend, shade[ch, f], color[py, px, s, ch],
-                                                                  shade[3, f])
+                            if write_z:
+                                depth[py, px, s] = z
+                        for ch in range(4):
+                            color[py, px, s, ch] = ops._blend(blend, shade[ch, f], color[py, px, s, ch],
+                                                              shade[3, f])
 
     return _draw
 

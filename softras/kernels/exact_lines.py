@@ -25,10 +25,11 @@ samples are the stages', value for value: tests/test_exact_lines.py):
    premultiplied) and `softras.pipeline.ops.apply_fragments` without
    quantizing (its own `_depth_pass` and `_blend`, per covered sample).
 
-Two parallel passes, as `softras.kernels.lines`: the set-up by lines, then
-the coverage by bands of `BAND_ROWS` rows (thread r of n bands r, r + n,
-...), where each thread walks all the lines in order over its own rows, so
-every pixel sees the lines in the stages' fragment order.
+Two passes, as `softras.kernels.lines`', each in a share a thread
+(`softras.kernels.pool.on_threads`): the set-up by lines, then the coverage
+by bands of `BAND_ROWS` rows (share r of n bands r, r + n, ...), where each
+share walks all the lines in order over its own rows, so every pixel sees
+the lines in the stages' fragment order.
 """
 
 from __future__ import annotations
@@ -36,8 +37,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from softras.kernels.pool import on_threads
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.stamp import sources_stamp
+from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _unowned
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, rasterize
@@ -68,55 +71,65 @@ def draw_lines(scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.nd
     indices = read_only(np.asarray(mesh.indices, np.int64).reshape(-1, 2), np.int64)
     n = len(indices)
     depth_func = ops.DEPTH_FUNCS[draw.depth_test]
-    _DRAW_LINES(read_only(c, np.float64), read_only(finite, np.bool_), indices, read_only(planes, np.float64),
-                read_only(stages.vertex_colors(mesh), np.float64), read_only(draw.material.color, np.float64),
-                read_only(lines_stage.sample_offsets(positions, rectangular, False), np.float64), positions,
-                rectangular, color, depth, depth_func, bool(draw.depth_write) and depth_func != 0,
-                ops.BLEND_MODES[draw.blend],
-                _scratch.take("drawn", (n,), np.bool_), _scratch.take("qx", (n, 4), np.float64),
-                _scratch.take("qy", (n, 4), np.float64), _scratch.take("window", (n, 2, 3), np.float64),
-                _scratch.take("inv_w", (n, 2), np.float64), _scratch.take("ends", (n, 2, 4), np.float64),
-                BAND_ROWS, numba.get_num_threads())
+    write_z = bool(draw.depth_write) and depth_func != 0
+    c = read_only(c, np.float64)
+    dist = _plane_distances(c, read_only(planes, np.float64))
+    table = (_scratch.take("drawn", (n,), np.bool_), _scratch.take("qx", (n, 4), np.float64),
+             _scratch.take("qy", (n, 4), np.float64), _scratch.take("window", (n, 2, 3), np.float64),
+             _scratch.take("inv_w", (n, 2), np.float64), _scratch.take("ends", (n, 2, 4), np.float64))
+    finite, values = read_only(finite, np.bool_), read_only(stages.vertex_colors(mesh), np.float64)
+    n_threads = numba.get_num_threads()
+    on_threads(lambda r: _SET_UP_LINES(r, n_threads, c, dist, finite, indices, values, rectangular, scene.width,
+                                       scene.height, *table), n_threads)
+    material = read_only(draw.material.color, np.float64)
+    offsets = read_only(lines_stage.sample_offsets(positions, rectangular, False), np.float64)
+    on_threads(lambda r: _COVER_LINES(r, n_threads, BAND_ROWS, material, offsets, positions, rectangular, color,
+                                      depth, depth_func, write_z, ops.BLEND_MODES[draw.blend], *table), n_threads)
 
 
 _scratch = _Scratch()
 
 
-def _make_draw_lines(sources: str):
-    """The exact line kernel, with ``sources`` (`softras.kernels.stamp`: the
-    kernels' and the line, ops and rasterize stages' sources, whose
-    functions it calls) as a closure variable: its cache key."""
+def _make_line_passes(sources: str):
+    """The exact line kernel's two passes, each one share of n_threads for
+    `softras.kernels.pool.on_threads`, as `softras.kernels.lines`' passes:
+    the set-up by lines (`_set_up_lines`: share r lines r, r + n_threads,
+    ...), then the coverage, shading and writes by bands of ``band_rows``
+    rows (`_cover_lines`).  c (N, 4) float64 clip positions, finite (N,),
+    indices (M, 2), planes (6, 4) (`softras.pipeline.lines.clip_inputs`),
+    values (N, 4) straight vertex colours, material (4,) its colour;
+    offsets (S, 2) raster offsets, positions (S, 2) in the pixel;
+    rectangular: MSAA lines; the float64 buffers; the depth function, depth
+    write (and a depth test) and blend codes; the per-line tables drawn
+    (M,), qx, qy (M, 4), window (M, 2, 3), inv_w (M, 2), ends (M, 2, 4)
+    (scratch, written by the set-up).  Compiled with ``sources``
+    (`softras.kernels.stamp`: the kernels' and the line, ops, rasterize and
+    clip stages' sources, whose functions they call) in their cache key,
+    as numba compiles a parallel loop's body (``noalias`` on their arrays,
+    `softras.kernels.threads.NoAliasCompiler`; the arrays handed on
+    unowned, `softras.kernels.threads._unowned`).  The helpers are called,
+    not inlined: inlined into the parallel loops they were a numba
+    parallel loop in until the fifty-first round, the kernel took 35 s to
+    compile cold here, called 22 s."""
 
-    @numba.njit(cache=True, parallel=True, error_model="numpy")
-    def draw_lines_kernel(c, finite, indices, planes, values, material, offsets, positions, rectangular, color,
-                          depth, depth_func, write_z, blend, drawn, qx, qy, window, inv_w, ends, band_rows,
-                          n_threads):
-        """Every line of a draw: clipped and set up in parallel
-        (`_set_up_lines`, thread r lines r, r + n_threads, ...), then
-        covered, shaded and applied in parallel by bands of ``band_rows``
-        rows (`_cover_lines`).  c (N, 4) float64 clip positions, finite
-        (N,), indices (M, 2), planes (6, 4) (`softras.pipeline.lines.clip_inputs`),
-        values (N, 4) straight vertex colours, material (4,) its colour;
-        offsets (S, 2) raster offsets, positions (S, 2) in the pixel;
-        rectangular: MSAA lines; the float64 buffers; the depth function,
-        depth write (and a depth test) and blend codes; the per-line tables
-        drawn (M,), qx, qy (M, 4), window (M, 2, 3), inv_w (M, 2), ends (M,
-        2, 4) (scratch, written here)."""
+    @numba.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+    def set_up_pass(r, n_threads, c, dist, finite, indices, values, rectangular, width, height, drawn, qx, qy,
+                    window, inv_w, ends):
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
-        dist = _plane_distances(c, planes)
-        height, width = depth.shape[0], depth.shape[1]
-        # (The two helpers are called, not inlined: inlined into the parallel
-        # loops the kernel took 35 s to compile cold here, called 22 s; and
-        # with an int64 thread number: numba types a prange index int64,
-        # then uint64 in the loop's body, and compiled each helper twice.)
-        for r in numba.prange(n_threads):
-            _set_up_lines(np.int64(r), n_threads, c, dist, finite, indices, values, rectangular, width, height,
-                          drawn, qx, qy, window, inv_w, ends)
-        for r in numba.prange(n_threads):
-            _cover_lines(np.int64(r), n_threads, band_rows, material, offsets, positions, rectangular, color,
-                         depth, depth_func, write_z, blend, drawn, qx, qy, window, inv_w, ends)
+        _set_up_lines(r, n_threads, _unowned(c), _unowned(dist), _unowned(finite), _unowned(indices),
+                      _unowned(values), rectangular, width, height, _unowned(drawn), _unowned(qx), _unowned(qy),
+                      _unowned(window), _unowned(inv_w), _unowned(ends))
 
-    return draw_lines_kernel
+    @numba.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+    def cover_pass(r, n_threads, band_rows, material, offsets, positions, rectangular, color, depth, depth_func,
+                   write_z, blend, drawn, qx, qy, window, inv_w, ends):
+        stamp = sources                 # noqa: F841  (a closure variable: the cache key)
+        _aligned_stack()
+        _cover_lines(r, n_threads, band_rows, _unowned(material), _unowned(offsets), _unowned(positions),
+                     rectangular, _unowned(color), _unowned(depth), depth_func, write_z, blend, _unowned(drawn),
+                     _unowned(qx), _unowned(qy), _unowned(window), _unowned(inv_w), _unowned(ends))
+
+    return set_up_pass, cover_pass
 
 
 @numba.njit(error_model="numpy")
@@ -235,4 +248,4 @@ def _apply_pixel(px, py, mask, n_samples, positions, rectangular, x_major, x0, y
                 color[py, px, s, ch] = ops._blend(blend, src[ch], color[py, px, s, ch], a)
 
 
-_DRAW_LINES = _make_draw_lines(sources_stamp(lines_stage, ops, rasterize, clip_stage))
+_SET_UP_LINES, _COVER_LINES = _make_line_passes(sources_stamp(lines_stage, ops, rasterize, clip_stage))

@@ -187,11 +187,11 @@ def _cached(variant) -> bool:
 def main_kernels(variant) -> tuple:
     """The numba dispatchers a variant is prepared for: its tile driver
     (`softras.kernels.draw._DRAW_TILES`), the gl line kernel's two passes,
-    or exact's draw and line kernels."""
+    or exact's draw kernel and its line kernel's two passes."""
     if variant == EXACT:
         from softras.kernels import exact, exact_lines
 
-        return exact._DRAW, exact_lines._DRAW_LINES
+        return exact._DRAW, exact_lines._SET_UP_LINES, exact_lines._COVER_LINES
     if variant == LINES:
         from softras.kernels import lines
 
