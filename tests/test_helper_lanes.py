@@ -54,33 +54,52 @@ draw._scratch.take = lambda name, shape, dtype: guarded(shape, dtype) if name ==
 """
 
 _CHILD = _GUARD + r"""
-width, height, samples = (int(a) for a in sys.argv[1:4])
-scene = softras.load_scene({
-    "softras_scene": 1, "width": width, "height": height, "samples": samples, "background": [0, 0, 0, 1],
-    "camera": {"projection": "orthographic", "left": -1, "right": 1, "bottom": -1, "top": 1,
-               "near": 0.1, "far": 10, "eye": [0, 0, 3], "target": [0, 0, 0]},
-    "textures": {"checker": {"procedural": "checker", "size": [8, 8]}},
-    "nodes": [{"name": "quad",
-               "mesh": {"positions": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]],
-                        "indices": [[0, 1, 2], [0, 2, 3]], "uvs": [[0, 1], [1, 1], [1, 0], [0, 0]]},
-               "material": {"texture": "checker"}}]})
-image = softras.render(scene)
-print("rendered", image.shape)
+for config in sys.argv[1:]:
+    width, height, samples = (int(a) for a in config.split(","))
+    print("start", config, flush=True)
+    scene = softras.load_scene({
+        "softras_scene": 1, "width": width, "height": height, "samples": samples, "background": [0, 0, 0, 1],
+        "camera": {"projection": "orthographic", "left": -1, "right": 1, "bottom": -1, "top": 1,
+                   "near": 0.1, "far": 10, "eye": [0, 0, 3], "target": [0, 0, 0]},
+        "textures": {"checker": {"procedural": "checker", "size": [8, 8]}},
+        "nodes": [{"name": "quad",
+                   "mesh": {"positions": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]],
+                            "indices": [[0, 1, 2], [0, 2, 3]], "uvs": [[0, 1], [1, 1], [1, 0], [0, 0]]},
+                   "material": {"texture": "checker"}}]})
+    image = softras.render(scene)
+    print("rendered", config, image.shape, flush=True)
 """
 
 
-@pytest.mark.parametrize("width, height", [(129, 97), (128, 97), (129, 96)])
-@pytest.mark.parametrize("samples", [1, 4])
-def test_a_textured_draw_reads_no_depth_outside_the_picture(width, height, samples):
-    """A full-picture textured quad with the depth test, in a picture of odd
-    width and/or height (helper lanes one pixel right of or below it), at one
-    sample (the inlined tile) and four (the tile the driver of any count
-    calls)."""
+# (width, height, samples): helper lanes right of, below, and right of and
+# below the picture, at one sample (the inlined tile) and four (the tile
+# the driver of any count calls).
+CONFIGS = [(width, height, samples) for samples in (1, 4) for width, height in ((129, 97), (128, 97), (129, 96))]
+
+
+def test_a_textured_draw_reads_no_depth_outside_the_picture():
+    """A full-picture textured quad with the depth test in each of `CONFIGS`'
+    pictures of odd width and/or height.  One child renders them one after
+    another (a child's start, numba's import and the kernels' load, is most
+    of its second); a child killed by a read past the guard page fails that
+    picture, and a new child goes on from the next."""
     env = dict(os.environ, SOFTRAS_COMPILE="wait")
-    done = subprocess.run([sys.executable, "-c", _CHILD, str(width), str(height), str(samples)],
-                          capture_output=True, text=True, timeout=600, env=env)
-    assert done.returncode == 0, f"exit status {done.returncode}: {done.stderr[-2000:]}"
-    assert done.stdout.strip() == f"rendered ({height}, {width}, 4)"
+    left, failures = [",".join(map(str, config)) for config in CONFIGS], []
+    while left:
+        done = subprocess.run([sys.executable, "-c", _CHILD, *left], capture_output=True, text=True, timeout=600,
+                              env=env)
+        rendered = [line.split()[1] for line in done.stdout.splitlines() if line.startswith("rendered ")]
+        for config in rendered:
+            width, height, _ = config.split(",")
+            assert f"rendered {config} ({height}, {width}, 4)" in done.stdout.splitlines()
+        left = left[len(rendered):]
+        if done.returncode != 0:
+            failures.append(f"{left[0] if left else 'after the last'}: exit status {done.returncode}: "
+                            f"{done.stderr[-2000:]}")
+            left = left[1:]
+        else:
+            assert not left, f"the child stopped before {left}"
+    assert not failures, "\n".join(failures)
 
 
 def test_the_guard_page_stops_a_read_past_the_end():
