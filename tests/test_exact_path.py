@@ -39,14 +39,16 @@ def exact_job(scene, **options) -> stages.Job:
 
 def assert_same_samples(scene, what, **options):
     """The stages' and the exact kernel's sample buffers are equal, value
-    for value (NaN where NaN); and so are the pictures `render_scene` makes."""
+    for value (NaN where NaN); and so are the pictures `render_scene` makes
+    (without the fast path it resolves the stages' samples: `stages.resolve`
+    of ``general``, not a second render of them)."""
     job = exact_job(scene, **options)
     general, kernel = stages.render_samples(scene, job), exact.render_samples(scene, job)
     differ = ~((general == kernel) | (np.isnan(general) & np.isnan(kernel))).all(axis=-1)
     assert not differ.any(), (f"{what}: {int(differ.sum())} samples differ, first at row/col/sample "
                               f"{np.argwhere(differ)[0].tolist()}")
-    assert np.array_equal(render_scene(scene, precision="exact", fast_path=False, **options),
-                          render_scene(scene, precision="exact", **options), equal_nan=True), what
+    assert np.array_equal(stages.resolve(job, general), render_scene(scene, precision="exact", **options),
+                          equal_nan=True), what
 
 
 @pytest.mark.parametrize("samples", [None, 4])

@@ -50,7 +50,8 @@ def differing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def assert_same_floats(scene, what, **options):
     """The stages' and the kernels' float32 sample buffers are equal bit for
-    bit (`differing`), and so are the pictures."""
+    bit (`differing`), and so are the pictures (the stages': `render_scene`'s
+    without the fast path, `stages.resolve` of ``general``)."""
     assert fastpath.unsupported(scene, precision="gl", clipping=None) is None, what
     job = float32_job(scene, **options)
     general = stages.render_samples(scene, job)
@@ -60,7 +61,7 @@ def assert_same_floats(scene, what, **options):
     differ = differing(general, kernel)
     assert not differ.any(), (f"{what}: {int(differ.sum())} samples differ, first at row/col/sample "
                               f"{np.argwhere(differ)[0].tolist()}")
-    pictures = [render_scene(scene, framebuffer="rgba32f", fast_path=fast, **options) for fast in (False, True)]
+    pictures = [stages.resolve(job, general), render_scene(scene, framebuffer="rgba32f", **options)]
     assert not differing(*pictures).any(), f"{what}: the pictures differ"
 
 
