@@ -95,9 +95,10 @@ def _make_line_passes(sources: str):
     `softras.kernels.pool.on_threads`, as `softras.kernels.lines`' passes:
     the set-up by lines (`_set_up_lines`: share r lines r, r + n_threads,
     ...), then the coverage, shading and writes by bands of ``band_rows``
-    rows (`_cover_lines`).  c (N, 4) float64 clip positions, finite (N,),
-    indices (M, 2), planes (6, 4) (`softras.pipeline.lines.clip_inputs`),
-    values (N, 4) straight vertex colours, material (4,) its colour;
+    rows (`_cover_lines`).  c (N, 4) float64 clip positions, finite (N,)
+    (`softras.pipeline.lines.clip_inputs`), dist (N, 6) their distances to
+    its clip planes (`softras.pipeline.clip._plane_distances`), indices
+    (M, 2), values (N, 4) straight vertex colours, material (4,) its colour;
     offsets (S, 2) raster offsets, positions (S, 2) in the pixel;
     rectangular: MSAA lines; the float64 buffers; the depth function, depth
     write (and a depth test) and blend codes; the per-line tables drawn
@@ -108,9 +109,9 @@ def _make_line_passes(sources: str):
     as numba compiles a parallel loop's body (``noalias`` on their arrays,
     `softras.kernels.threads.NoAliasCompiler`; the arrays handed on
     unowned, `softras.kernels.threads._unowned`).  The helpers are called,
-    not inlined: inlined into the parallel loops they were a numba
-    parallel loop in until the fifty-first round, the kernel took 35 s to
-    compile cold here, called 22 s."""
+    not inlined (inlined into the numba parallel loops these passes were
+    until the fifty-first round, the kernel took 35 s to compile cold here;
+    called, 22 s)."""
 
     @numba.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
     def set_up_pass(r, n_threads, c, dist, finite, indices, values, rectangular, width, height, drawn, qx, qy,
