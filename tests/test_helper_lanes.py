@@ -56,7 +56,6 @@ draw._scratch.take = lambda name, shape, dtype: guarded(shape, dtype) if name ==
 _CHILD = _GUARD + r"""
 for config in sys.argv[1:]:
     width, height, samples = (int(a) for a in config.split(","))
-    print("start", config, flush=True)
     scene = softras.load_scene({
         "softras_scene": 1, "width": width, "height": height, "samples": samples, "background": [0, 0, 0, 1],
         "camera": {"projection": "orthographic", "left": -1, "right": 1, "bottom": -1, "top": 1,
