@@ -132,6 +132,7 @@ def _m(name, stage, where, what, edits, quick):
 
 E = Edit
 FAST = "tests/test_fastpath.py"
+FAST_TILES = FAST + "::test_tiles_cleared_where_first_drawn_give_the_stages_bytes"
 MUTATIONS: tuple[Mutation, ...] = (
     # ----------------------------------------------------------------- vertex
     _m("vertex_sum_order", "vertex", "shared",
@@ -438,22 +439,22 @@ MUTATIONS: tuple[Mutation, ...] = (
     _m("fast_tile_cleared_again", "fast path framebuffer clear", "fast path",
        "a tile drawn in one batch is cleared again by the next batch that draws there (its flag kept)",
        E("softras/kernels/draw.py", "                fb_r.fresh[tile] = 0\n", "                pass\n"),
-       (FAST + "::test_tiles_cleared_where_first_drawn_give_the_stages_bytes",)),
+       (FAST_TILES,)),
     _m("fast_no_clear_before_lines", "fast path framebuffer clear", "fast path",
        "a line draw draws into tiles no triangle draw has cleared yet",
        E("softras/kernels/draw.py", "            _clear_fresh(tuple(fb), not rgba8)\n            draw_lines(",
          "            draw_lines("),
-       (FAST + "::test_tiles_cleared_where_first_drawn_give_the_stages_bytes",)),
+       (FAST_TILES,)),
     _m("fast_tile_clear_short_row", "fast path framebuffer clear", "fast path",
        "a tile's clear and its copy into the picture leave the last pixel of each of its rows",
        E("softras/kernels/ops.py", "return x0, x_last + 1, y0, min(y0 + TILE, height)",
          "return x0, x_last, y0, min(y0 + TILE, height)"),
-       (FAST + "::test_tiles_cleared_where_first_drawn_give_the_stages_bytes",)),
+       (FAST_TILES,)),
     _m("fast_picture_drawn_tile_as_background", "fast path framebuffer clear", "fast path",
        "the one-sample picture takes the background for the tiles the last batch drew",
        E("softras/kernels/ops.py", "                if fresh[tile]:\n                    row[:] = word",
          "                if not fresh[tile]:\n                    row[:] = word"),
-       (FAST + "::test_tiles_cleared_where_first_drawn_give_the_stages_bytes",)),
+       (FAST_TILES,)),
     _m("exact_band_drawn_by_every_share", "exact path shares", "exact path",
        "every share of an exact draw draws every band (no band taken by one share alone)",
        E("softras/kernels/exact.py", "            if not _owns(owners, band, r):\n                continue\n", ""),

@@ -87,10 +87,10 @@ def test_a_textured_draw_reads_no_depth_outside_the_picture():
     while left:
         done = subprocess.run([sys.executable, "-c", _CHILD, *left], capture_output=True, text=True, timeout=600,
                               env=env)
-        rendered = [line.split()[1] for line in done.stdout.splitlines() if line.startswith("rendered ")]
-        for config in rendered:
+        rendered = [line for line in done.stdout.splitlines() if line.startswith("rendered ")]
+        for config, line in zip(left, rendered):
             width, height, _ = config.split(",")
-            assert f"rendered {config} ({height}, {width}, 4)" in done.stdout.splitlines()
+            assert line == f"rendered {config} ({height}, {width}, 4)"
         left = left[len(rendered):]
         if done.returncode != 0:
             failures.append(f"{left[0] if left else 'after the last'}: exit status {done.returncode}: "

@@ -113,7 +113,7 @@ from softras.kernels.setup import (_F_DZDX, _F_DZDY, _F_X, _F_Y, _F_Z, _NF, _NI,
                                    Triangles, _setup, window_buffers)
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.pool import on_threads
-from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _aligned_stack, _owns
+from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _owns, owners_table
 from softras.kernels.maps import _map_normals
 from softras.kernels.texture import (FILTER_CODES, MIN_FILTERS, NO_TEXTURE, VECTORISED_NEAREST, Sampler, Texels,
                                      _lanes_aniso_levels, _lanes_bilinear_fixed, _lanes_lod, _lanes_nearest_fixed,
@@ -346,10 +346,9 @@ def draw_batch(batch: list, picture: tuple | None = None) -> None:
 
 def tile_owners(batch: list, n_shares: int) -> np.ndarray:
     """The table the shares of a batch take its tiles in
-    (`softras.kernels.threads._owns`): int64 (tiles,) of -1 (nobody's yet)
-    for more than one share, else `ONE_SHARE`."""
+    (`softras.kernels.threads.owners_table`)."""
     bin_start = batch[0].records[0][0]          # (tiles + 1 entries; every draw of a pass has the same tiles)
-    return np.full(len(bin_start) - 1, -1, np.int64) if n_shares > 1 else ONE_SHARE
+    return owners_table(len(bin_start) - 1, n_shares)
 
 
 def set_up_triangles(this_pass: Pass, draw, slot: int = 0) -> TileWork | None:

@@ -72,7 +72,7 @@ from softras.kernels.setup import CULL_CODES, _depth_slopes, _made_corner, _own_
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _filter_level, _nan_max, texture_tables
 from softras.kernels.texture_beyond import _beyond_texel, beyond_tables
-from softras.kernels.threads import ONE_SHARE, NoAliasCompiler, _aligned_stack, _owns, _unowned
+from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _owns, _unowned, owners_table
 from softras.pipeline import libm, ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle, _sample_box
 from softras.scene import Scene
@@ -371,7 +371,7 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
             ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
             cutoff is not None, float(cutoff or 0.0), BAND_ROWS)
     n_threads = numba.get_num_threads()
-    owners = np.full(-(-scene.height // BAND_ROWS), -1, np.int64) if n_threads > 1 else ONE_SHARE
+    owners = owners_table(-(-color.shape[0] // BAND_ROWS), n_threads)     # (the kernel's bands)
     on_threads(lambda r: _DRAW(*args, owners, r), n_threads)
 
 
@@ -668,7 +668,7 @@ def _make_draw(sources: str):
         """Share r of one `compiled` triangle draw into the float64 buffers
         color (H, W, S, 4) and depth (H, W, S): the bands of ``band_rows``
         rows it takes (`softras.kernels.threads._owns`: owners (bands,)
-        int64, -1 where no share has taken the band yet, or ONE_SHARE), the
+        int64, `softras.kernels.threads.owners_table`), the
         shares run at once on `softras.kernels.pool.on_threads`.  Taken as
         the shares reach them, not in fixed shares: the pool's thread starts
         its share up to 0.2 ms after the calling thread, and in fixed shares

@@ -105,6 +105,13 @@ def _aligned_stack(typingctx):
 ONE_SHARE = np.zeros(0, np.int64)
 
 
+def owners_table(n: int, n_shares: int) -> np.ndarray:
+    """The table n_shares shares take n pieces of work in (`_owns`: the tiles
+    of a batch, the bands of an exact draw): int64 (n,) of -1 (nobody's yet)
+    for more than one share, else `ONE_SHARE`."""
+    return np.full(n, -1, np.int64) if n_shares > 1 else ONE_SHARE
+
+
 @intrinsic
 def _claim(typingctx, owners, tile, r):
     """owners[tile] = r if it is -1, as one atomic operation (LLVM's
