@@ -620,6 +620,12 @@ MUTATIONS: tuple[Mutation, ...] = (
          "and texture_bounds is None"),
        (FAST, "tests/test_texture_bounds.py", "tests/test_verifier.py", "tests/stages/test_setup.py",
         "tests/test_planted_bugs.py")),
+    _m("call_typed_without_its_arguments", "compile", "stages",
+       "numba's typing of a call kept once for the function, whatever its argument types",
+       E("softras/pipeline/numba_fixes.py",
+         "key = (self, context, tuple(args), tuple(kws.items()), stack.top_or_none())",
+         "key = (self, context, tuple(kws.items()), stack.top_or_none())"),
+       ("tests/test_numba_fixes.py",)),
 )
 
 

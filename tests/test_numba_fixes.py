@@ -14,7 +14,8 @@ import subprocess
 import sys
 from types import SimpleNamespace
 
-from numba.core import analysis, inline_closurecall, ir_utils, ssa
+import pytest
+from numba.core import analysis, inline_closurecall, ir_utils, ssa, types
 
 from softras.pipeline import numba_fixes
 
@@ -32,7 +33,7 @@ import json, re, sys
 import numba
 import numpy as np
 from softras.pipeline import numba_fixes
-from numba.core import analysis, ssa, untyped_passes
+from numba.core import analysis, ssa, types, untyped_passes
 from softras.kernels import light
 from softras.scene import load_scene
 
@@ -91,6 +92,7 @@ vertex_lighting(base, world, table, tuple(lighting), lit)
 code = re.sub(r"0x[0-9a-f]+", "0x?", compiled.library.get_asm_str())
 code = re.sub(r"B\d+v\d+", "Bv", code)
 code = re.sub(r'(\.size\s+"\.const\.[^"]*"), \d+', r"\1, N", code)
+used["calls"] = getattr(types.BaseFunction.get_call_type, "hits", 0)
 print(json.dumps({"code": code, "lit": lit.tobytes().hex(), "used": used, "work": work}))
 """
 
@@ -121,7 +123,7 @@ def test_the_fixes_are_installed_on_this_numba():
     assert getattr(inline_closurecall.InlineWorker.inline_ir, "__wrapped__", None) is not None
     assert getattr(inline_closurecall.InlineWorker.inline_ir.__wrapped__, "_softras", False) is False
     for wrapped in (inline_closurecall.InlineWorker.run_untyped_passes, ssa._run_ssa, ssa._run_block_rewrite,
-                    analysis.compute_live_map):
+                    analysis.compute_live_map, types.BaseFunction.get_call_type):
         assert getattr(wrapped, "__wrapped__", None) is not None
         assert getattr(wrapped.__wrapped__, "__wrapped__", None) is None       # (wrapped once)
 
@@ -171,10 +173,62 @@ def test_numba_is_left_alone_where_it_is_not_as_expected():
                                                    analysis.compute_live_map, Config.values, Config.__hash__,
                                                    Scheme._markup))
     assert Scheme()._markup("m", "<c>") == "<c>*m!"
+    # (The stand-ins' flags have no stack: numba's own call typing was left as it is, not wrapped again.)
+    assert not hasattr(types.BaseFunction.get_call_type.__wrapped__, "memo")
     fresh = type("Fresh", (), {"inline_ir": lambda self: None, "run_untyped_passes": lambda self: None})
     inliner, passes, ssa, ir, analysis, config, _ = modules(worker=fresh)
     assert numba_fixes.install(inliner, passes, ssa, ir, analysis, config, SimpleNamespace())   # (no colorama:
     assert fresh.inline_ir._softras                                                             # the others)
+
+    class Function:
+        def get_call_type(self, context, args, kws):
+            pass
+
+        def get_impl_key(self, sig):
+            pass
+
+    fresh = type("Fresh", (), {"inline_ir": lambda self: None, "run_untyped_passes": lambda self: None})
+    inliner, passes, ssa, ir, analysis, config, errors = modules(worker=fresh)
+    config.ConfigStack = SimpleNamespace(top_or_none=lambda: None)
+    functions = SimpleNamespace(BaseFunction=Function)
+    assert numba_fixes.install(inliner, passes, ssa, ir, analysis, config, errors, functions)
+    assert Function.get_call_type.memo == {}
+
+
+def test_a_call_is_typed_once_with_numbas_signature_and_key():
+    """A call typed again returns the signature numba resolved and records
+    its implementation key again; other flags, other argument types or
+    another function are typed anew, and a call that fails fails each time."""
+    import operator
+
+    from numba.core import errors, targetconfig
+    from numba.core.compiler import Flags
+    from numba.core.registry import cpu_target
+
+    context = cpu_target.typing_context
+    context.refresh()
+    get_call_type = types.BaseFunction.get_call_type
+    add, mul = context.resolve_value_type(operator.add), context.resolve_value_type(operator.mul)
+    args = (types.int64, types.float32)
+    first = add.get_call_type(context, args, {})
+    assert first == get_call_type.__wrapped__(add, context, args, {})        # numba's own signature
+    key = add.get_impl_key(first)
+    hits = get_call_type.hits
+    add._impl_keys[first.args] = "another compile's"
+    assert add.get_call_type(context, args, {}) is first and get_call_type.hits == hits + 1
+    assert add.get_impl_key(first) == key
+    kinds = len(get_call_type.memo)
+    flags = Flags()
+    flags.error_model = "numpy"
+    with targetconfig.ConfigStack().enter(flags):
+        assert add.get_call_type(context, args, {}) == first
+    assert mul.get_call_type(context, args, {}) == get_call_type.__wrapped__(mul, context, args, {})
+    add.get_call_type(context, (types.int32, types.int32), {})
+    assert len(get_call_type.memo) == kinds + 3 and get_call_type.hits == hits + 1
+    for _ in range(2):
+        with pytest.raises(errors.TypingError):
+            add.get_call_type(context, (types.none, types.unicode_type), {})
+    assert len(get_call_type.memo) == kinds + 3
 
 
 def test_error_messages_are_numbas_strings():
@@ -248,8 +302,8 @@ def test_one_inlining_copies_the_scope_once():
 
 def test_kernels_compile_to_the_same_code_with_and_without_the_fixes(tmp_path):
     fast, plain = compiled(tmp_path)
-    assert fast["used"]["blocks"] > 0 and fast["used"]["tables"] > 0 and fast["used"]["kept"] > 0, fast["used"]
-    assert plain["used"] == {"blocks": 0, "tables": 0, "kept": 0}
+    assert all(fast["used"][name] > 0 for name in ("blocks", "tables", "kept", "calls")), fast["used"]
+    assert plain["used"] == {"blocks": 0, "tables": 0, "kept": 0, "calls": 0}
     assert fast["work"]["front ends"] < plain["work"]["front ends"], (fast["work"], plain["work"])
     assert fast["work"]["ssa statements"] < plain["work"]["ssa statements"], (fast["work"], plain["work"])
     assert fast["work"]["liveness"] > 0 and fast["work"]["liveness differing"] == 0, fast["work"]

@@ -59,6 +59,19 @@ either way.  `_plain_markup` returns that string: the colour, the style,
 the message and colorama's reset, through UTF-8 as numba's did.  (Only
 where colorama is installed: without it numba's messages are plain.)
 
+One types each call once: **call typing** (`numba.core.types.functions.
+BaseFunction.get_call_type`, for every call of a builtin, an operator or
+an ``@overload`` that type inference meets) tried the function's
+templates in order on every call, though an inlined kernel makes the same
+call thousands of times (``int64 + int64``): in a tile driver's compile
+~18,000 calls of ~1,500 kinds, the repeats ~12 % of it.  `_call_types_once`
+keeps what a call resolved to (its signature and the implementation key
+numba records with it), keyed as numba keys the overloads it compiles
+(``_OverloadFunctionTemplate._get_impl``: the typing context, the
+argument types, the compile flags) and the function type, and on a repeat
+returns that signature and records that key again, as numba's own would;
+a call that fails is tried again every time.
+
 And one does the same work with smaller sets: **liveness**
 (`numba.core.analysis.compute_live_map`, run by every ``PostProcessor``
 after a pass changed the IR) carried sets of variable names from block to
@@ -141,18 +154,21 @@ class _PassesCopy:
 _SSA_NAMES = ("_run_ssa", "_run_block_rewrite")
 
 
-def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=None, errors=None) -> bool:
+def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=None, errors=None,
+            functions=None) -> bool:
     """Install the fixes (once) into numba's `numba.core.inline_closurecall`,
     `numba.core.ir_utils`, `numba.core.ssa`, `numba.core.analysis`,
-    `numba.core.targetconfig` and `numba.core.errors` (or the modules
-    given, for the tests; ``ir``: `numba.core.ir`, ``config``:
-    targetconfig); False, and nothing changed, where they are off or the
-    modules are not as expected (numba's errors without colorama: that fix
-    alone left out)."""
+    `numba.core.targetconfig`, `numba.core.errors` and
+    `numba.core.types.functions` (or the modules given, for the tests;
+    ``ir``: `numba.core.ir`, ``config``: targetconfig); False, and nothing
+    changed, where they are off or the modules are not as expected (numba's
+    errors without colorama, or function types or flags not as
+    `_call_types_once` expects: that fix alone left out)."""
     if os.environ.get("SOFTRAS_NUMBA_FIXES", "1") == "0":
         return False
     from numba.core import analysis as numba_analysis, inline_closurecall, ir as numba_ir, ir_utils, ssa as numba_ssa
     from numba.core import errors as numba_errors, targetconfig
+    from numba.core.types import functions as numba_functions
 
     inliner = inline_closurecall if inliner is None else inliner
     passes = ir_utils if passes is None else passes
@@ -161,6 +177,7 @@ def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=
     analysis = numba_analysis if analysis is None else analysis
     config = targetconfig if config is None else config
     errors = numba_errors if errors is None else errors
+    functions = numba_functions if functions is None else functions
     target_config = getattr(config, "TargetConfig", None)
     worker = getattr(inliner, "InlineWorker", None)
     inline_ir = getattr(worker, "inline_ir", None)
@@ -199,7 +216,48 @@ def install(inliner=None, passes=None, ssa=None, ir=None, analysis=None, config=
     if callable(markup) and isinstance(reset, str) and markup.__defaults__ is not None \
             and len(markup.__defaults__) == 2:
         scheme._markup = _plain_markup(markup, reset)
+    function_type = getattr(functions, "BaseFunction", None)
+    stack = getattr(config, "ConfigStack", None)
+    if all(callable(getattr(function_type, name, None)) for name in ("get_call_type", "get_impl_key")) \
+            and callable(getattr(stack, "top_or_none", None)) and not hasattr(function_type.get_call_type, "memo"):
+        function_type.get_call_type = _call_types_once(function_type.get_call_type, stack)
     return True
+
+
+def _call_types_once(get_call_type, stack):
+    """``BaseFunction.get_call_type(self, context, args, kws)`` resolving each
+    call once: the signature numba resolved for the function type ``self``
+    in the typing context, with these argument types, under the compile
+    flags on top of ``stack`` (`numba.core.targetconfig.ConfigStack`), and
+    the implementation key numba recorded for it in ``self._impl_keys``
+    (what lowering calls); on a repeat that signature is returned and that
+    key recorded again (another compile's flags may have recorded
+    another).  A call that raises is not kept, nor one whose types do not
+    hash; the ``memo`` and the count of ``hits`` are the wrapper's
+    attributes."""
+
+    memo = {}
+
+    @functools.wraps(get_call_type)
+    def get_call_type_once(self, context, args, kws):
+        try:
+            key = (self, context, tuple(args), tuple(kws.items()), stack.top_or_none())
+            found = memo.get(key)
+        except TypeError:                       # (a type that does not hash: numba's own, every time)
+            return get_call_type(self, context, args, kws)
+        if found is not None:
+            get_call_type_once.hits += 1
+            signature, impl_key = found
+            self._impl_keys[signature.args] = impl_key
+            return signature
+        signature = get_call_type(self, context, args, kws)
+        if signature is not None:
+            memo[key] = signature, self._impl_keys[signature.args]
+        return signature
+
+    get_call_type_once.memo = memo
+    get_call_type_once.hits = 0
+    return get_call_type_once
 
 
 def _plain_markup(markup, reset: str):
