@@ -370,8 +370,9 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
             map_texels.bytes, map_texels.levels, float(material.bump_scale), color, depth,
             ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
             cutoff is not None, float(cutoff or 0.0), BAND_ROWS)
-    n_threads = numba.get_num_threads()
-    owners = owners_table(-(-color.shape[0] // BAND_ROWS), n_threads)     # (the kernel's bands)
+    bands = -(-color.shape[0] // BAND_ROWS)                                # (the kernel's bands)
+    n_threads = max(1, min(numba.get_num_threads(), bands))   # (a share without a band costs a hand-off, for nothing)
+    owners = owners_table(bands, n_threads)
     on_threads(lambda r: _DRAW(*args, owners, r), n_threads)
 
 

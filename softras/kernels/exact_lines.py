@@ -78,13 +78,16 @@ def draw_lines(scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.nd
              _scratch.take("qy", (n, 4), np.float64), _scratch.take("window", (n, 2, 3), np.float64),
              _scratch.take("inv_w", (n, 2), np.float64), _scratch.take("ends", (n, 2, 4), np.float64))
     finite, values = read_only(finite, np.bool_), read_only(stages.vertex_colors(mesh), np.float64)
-    n_threads = numba.get_num_threads()
-    on_threads(lambda r: _SET_UP_LINES(r, n_threads, c, dist, finite, indices, values, rectangular, scene.width,
-                                       scene.height, *table), n_threads)
+    # (Each pass in as many shares as it has pieces, up to the threads: a
+    # share with nothing to do costs a hand-off to the pool all the same.)
+    n_set_up = max(1, min(numba.get_num_threads(), n))
+    on_threads(lambda r: _SET_UP_LINES(r, n_set_up, c, dist, finite, indices, values, rectangular, scene.width,
+                                       scene.height, *table), n_set_up)
     material = read_only(draw.material.color, np.float64)
     offsets = read_only(lines_stage.sample_offsets(positions, rectangular, False), np.float64)
-    on_threads(lambda r: _COVER_LINES(r, n_threads, BAND_ROWS, material, offsets, positions, rectangular, color,
-                                      depth, depth_func, write_z, ops.BLEND_MODES[draw.blend], *table), n_threads)
+    n_cover = max(1, min(numba.get_num_threads(), -(-scene.height // BAND_ROWS)))
+    on_threads(lambda r: _COVER_LINES(r, n_cover, BAND_ROWS, material, offsets, positions, rectangular, color,
+                                      depth, depth_func, write_z, ops.BLEND_MODES[draw.blend], *table), n_cover)
 
 
 _scratch = _Scratch()
@@ -125,7 +128,6 @@ def _make_line_passes(sources: str):
     def cover_pass(r, n_threads, band_rows, material, offsets, positions, rectangular, color, depth, depth_func,
                    write_z, blend, drawn, qx, qy, window, inv_w, ends):
         stamp = sources                 # noqa: F841  (a closure variable: the cache key)
-        _aligned_stack()
         _cover_lines(r, n_threads, band_rows, _unowned(material), _unowned(offsets), _unowned(positions),
                      rectangular, _unowned(color), _unowned(depth), depth_func, write_z, blend, _unowned(drawn),
                      _unowned(qx), _unowned(qy), _unowned(window), _unowned(inv_w), _unowned(ends))
@@ -143,6 +145,7 @@ def _set_up_lines(r, n_threads, c, dist, finite, indices, values, rectangular, w
     exact: ``clip[:3] * oow * scale + scale``), their colours (the clip
     weights x the vertices' values) and the quad (`_setup_line`, gl
     False); drawn False for a line dropped or culled."""
+    _aligned_stack()                    # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
     end_clip = np.empty((1, 2, 4))
     weights = np.empty((1, 2, 2))
     generated = np.empty((1, 2), np.bool_)
@@ -173,6 +176,7 @@ def _cover_lines(r, n_threads, band_rows, material, offsets, positions, rectangu
     `_depth_pass`), its colour interpolated at the pixel centre
     (`_line_t`, `interpolate_lines`), shaded (`shade_unlit`) and blended
     into each passed sample (`_blend`), as `apply_fragments` applies it."""
+    _aligned_stack()                    # (on the pool's threads: `softras.kernels.threads._aligned_stack`)
     height, width, n_samples = depth.shape[0], depth.shape[1], depth.shape[2]
     unit = np.float64(FIXED_ONE)
     box = _sample_box(offsets)
