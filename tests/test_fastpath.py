@@ -29,6 +29,7 @@ from softras.kernels import rgba8 as k_rgba8
 from softras.kernels import setup as k_setup
 from softras.kernels import texture as k_texture
 from softras.pipeline import fragment, sampling, texture_beyond, vertex
+from softras.pipeline.ops import blend_byte
 from softras.renderer import render_scene
 
 SCENES = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.json"))
@@ -763,22 +764,83 @@ def test_bench_anisotropic_floor_is_bit_identical():
     assert_same(*both_paths(scene), "bench floor, anisotropy 16")
 
 
+@numba.njit
+def _blend_words(mode, words, stored, got, expected):
+    """`k_ops._blend_word` of each fragment word over its stored word (mode a
+    value, unknown to the compiler: the branch-free code of the any-state
+    copies) into got, and `ops.blend_byte` of their channels into expected."""
+    for i in range(words.shape[0]):
+        word, dst = words[i], stored[i]
+        alpha = (word >> 24) & 255
+        got[i] = k_ops._blend_word(mode, word, dst, alpha)
+        bytes_ = 0
+        for c in range(4):
+            bytes_ |= blend_byte(mode, (word >> (8 * c)) & 255, (dst >> (8 * c)) & 255, alpha) << (8 * c)
+        expected[i] = bytes_
+
+
 def test_word_blend_equals_the_per_channel_blend():
-    """`_blend_word` (spread lanes for over, over_straight, add) = `ops.blend_byte`
-    per channel, every mode, on random words and every alpha byte with
-    extreme colour bytes."""
-    from softras.pipeline.ops import blend_byte
-    rng = np.random.default_rng(5)
-    words = [int(w) for w in rng.integers(0, 2**32, 3000)]
-    words += [(a << 24) | (c * 0x010101) for a in range(256) for c in (0, 1, 127, 254, 255)]
-    stored = [int(w) for w in rng.integers(0, 2**32, len(words))]
-    stored[:256] = [0xFFFFFFFF] * 256
+    """`_blend_word` (the four spread lanes at once, without a branch) =
+    `ops.blend_byte` per channel, every mode: every pair of fragment and
+    stored bytes in each channel (R, G and B each get every pair, in
+    another order), with every alpha byte for the modes that read it
+    ("over", "over_straight") and the ends and a few others for the rest
+    (alpha is the fragment's fourth byte, blended over every stored alpha)."""
+    pairs = np.arange(65536, dtype=np.int64)
+    src, dst = pairs >> 8, pairs & 255
+    stored = dst | (np.roll(dst, 1) << 8) | (np.roll(dst, 2) << 16) | (np.roll(dst, 3) << 24)
+    got, expected = np.empty_like(pairs), np.empty_like(pairs)
     for mode in range(8):
-        for word, dst in zip(words, stored):
-            alpha = (word >> 24) & 255
-            expected = sum(blend_byte(mode, (word >> (8 * c)) & 255, (dst >> (8 * c)) & 255, alpha) << (8 * c)
-                           for c in range(4))
-            assert k_ops._blend_word(mode, word, dst, alpha) == expected, (mode, hex(word), hex(dst))
+        for alpha in (range(256) if mode in (1, 2) else (0, 1, 127, 128, 254, 255)):
+            words = src | (np.roll(src, 1) << 8) | (np.roll(src, 2) << 16) | (alpha << 24)
+            _blend_words(mode, words, stored, got, expected)
+            wrong = np.flatnonzero(got != expected)
+            assert wrong.size == 0, (mode, alpha, hex(words[wrong[0]]), hex(stored[wrong[0]]))
+
+
+def state_grid_scene(lit: bool) -> dict:
+    """Every depth function (and none) with every blend mode, a draw each
+    (72 draws), with and without depth writes: overlapping tilted quads
+    over the whole picture on three planes that cross, each plane drawn
+    more than once (equal depths) and one quad past the far plane on one
+    side (clipped there), vertex colours with alpha from 0.2 to 0.9; with
+    ``lit`` Phong-shaded by a point light (the lane path), else unlit
+    (the row path)."""
+    funcs = ["less", "lequal", "equal", "greater", "gequal", "notequal", "always", "never", False]
+    blends = ["none", "over", "over_straight", "add", "subtract", "reverse_subtract", "min", "max"]
+    nodes = [{"name": "ground", "mesh": {"positions": [[-3, -3, -0.2], [3, -3, 0.2], [3, 3, -0.2], [-3, 3, 0.2]],
+                                         "indices": [[0, 1, 2], [0, 2, 3]], "colors": [[0.5, 0.4, 0.3, 1]] * 4}}]
+    for k, (func, blend) in enumerate((f, b) for f in funcs for b in blends):
+        tilt = [0.3, -0.3, 0.0][k % 3]
+        mesh = {"positions": [[-3, -3, -tilt], [3, -3, tilt], [3, 3, tilt], [-3, 3, -tilt]],
+                "indices": [[0, 1, 2], [0, 2, 3]],
+                "colors": [[(k * 0.37) % 1, (k * 0.61) % 1, (k * 0.13) % 1, 0.2 + 0.7 * ((k * 0.29) % 1)],
+                           [1, 0.2, 0.1, 0.9], [0.1, 1, 0.3, 0.5], [0.2, 0.3, 1, 0.2]]}
+        node = {"name": f"{func}-{blend}", "mesh": mesh, "depth_test": func, "depth_write": k % 2 == 0,
+                "blend": blend, "translate": [0, 0, -0.05 * (k % 2)]}
+        if k % 9 == 4:
+            mesh["positions"][1][2] = mesh["positions"][2][2] = -40     # (beyond the far plane there)
+        if lit:
+            mesh["normals"] = [[0, 0, 1], [0.3, 0, 1], [0, 0.3, 1], [-0.3, -0.3, 1]]
+            node["material"] = {"shading": "phong", "ambient": 0.2, "diffuse": 0.8, "specular": 0.5,
+                                "shininess": 16}
+        nodes.append(node)
+    scene = {"softras_scene": 1, "width": 61, "height": 43, "background": [0.1, 0.2, 0.3, 1], "nodes": nodes,
+             "camera": {"projection": "perspective", "fov_y": 70, "near": 0.5, "far": 6,
+                        "eye": [0, 0, 2.5], "target": [0, 0, 0]}}
+    if lit:
+        scene["lights"] = [{"type": "point", "position": [1, 1, 3], "color": [1, 0.9, 0.8]}]
+    return scene
+
+
+@pytest.mark.parametrize("lit", [False, True])
+@pytest.mark.parametrize("samples", [1, 4])
+def test_every_depth_function_with_every_blend_is_bit_identical(lit, samples):
+    """The drivers' copies for common states and their copy for any other
+    state (`softras.kernels.draw._flat_row`, without a branch on the
+    depth function or the blend) give the stages' bytes for every pair."""
+    scene = softras.load_scene(state_grid_scene(lit))
+    assert_same(*both_paths(scene, samples=samples), f"every depth function and blend, lit {lit}, {samples} samples")
 
 
 def test_integer_depth_test_equals_the_float_depth_test():

@@ -1068,9 +1068,9 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
         first, last = _padded_run(start, end, tile_x0, tile_x1)
         _row_pixels(start, end, first, last, True, py, runs, x0, corners, corner_colors, plane, positions,
                     depths, words, width, False, 0, False, 1, False, n_samples)
-    else:
+    else:                                   # (any other state: every step without a branch, see `_row_pixels`)
         _row_pixels(start, end, start, end, False, py, runs, x0, corners, corner_colors, plane, positions,
-                    depths, words, width, _uses_depth(depth_func, write_z), depth_func, write_z, blend, flat, n_samples)
+                    depths, words, width, True, depth_func, write_z, blend, flat, n_samples)
 
 
 @numba.njit(cache=True, inline="always")
@@ -1113,13 +1113,21 @@ def _row_pixels(start, end, first, last, widened, py, runs, x0, corners, corner_
     per sample: `_write_word`'s one blend for equal samples gives the same
     words) and the store of a passed sample's word.
 
-    Written for LLVM's vectoriser: no branch in the loop where the depth
-    function, blend, ``flat`` and the sample count are constants
-    (`_flat_row`'s copies): every value computed, every store a bitwise
-    select of the new value or the stored one (a pixel belongs to one tile,
-    so its thread alone reads and writes it), and the index an unsigned
-    integer, so that numba adds no test for negative indices and the loads
-    and stores are seen to be consecutive."""
+    Written for LLVM's vectoriser: no branch in the loop, every value
+    computed, every store a bitwise select of the new value or the stored
+    one (a pixel belongs to one tile, so its thread alone reads and writes
+    it; the depth is written back as stored where write_z is off), and the
+    index an unsigned integer, so that numba adds no test for negative
+    indices and the loads and stores are seen to be consecutive.
+    `_flat_row`'s copies for the common states have the depth function,
+    blend, ``flat`` and the sample count as constants; its copy for any
+    other state reads them as values, through the depth test
+    (`softras.kernels.ops._depth_pass_k`) and blend
+    (`softras.kernels.ops._blend_word`) that select without a branch, and
+    with use_depth on (a draw without depth passes every sample there): the
+    blended layers with a depth test, "add" or "min" at 512^2 took 1.5-2.4x
+    the time of "over" without depth before (docs/speed.md, "Fifty-third
+    round")."""
     if n_samples == 1:
         _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, plane, positions, depths, words,
                       width, use_depth, depth_func, write_z, blend, flat)
@@ -1141,8 +1149,8 @@ def _row_pixels(start, end, first, last, widened, py, runs, x0, corners, corner_
                 k = _depth_k(z0 + dzdx * ((px + ox) - fx0) + dzdy * ((py + oy) - fy0))
                 stored = depths[i]
                 keep &= -np.int64(_depth_pass_k(depth_func, k, stored))
-                if write_z:
-                    depths[i] = np.int32((k & keep) | (stored & ~keep))
+                written = keep & -np.int64(write_z)             # (keep where write_z is a constant True)
+                depths[i] = np.int32((k & written) | (stored & ~written))
             dst = np.int64(words[i])
             out = word
             if blend != 0:
@@ -1170,8 +1178,8 @@ def _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, 
             k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * zy)
             stored = depths[i]
             keep &= -np.int64(_depth_pass_k(depth_func, k, stored))
-            if write_z:
-                depths[i] = np.int32((k & keep) | (stored & ~keep))
+            written = keep & -np.int64(write_z)                 # (keep where write_z is a constant True)
+            depths[i] = np.int32((k & written) | (stored & ~written))
         w = (1.0, 0.0, 0.0)
         if not flat:
             w = _weights_at(corners, px + 0.5, cy)
@@ -1184,7 +1192,7 @@ def _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, 
 
 # One compiled tile driver per (samples, textured) variant (`_make_draw_tiles`),
 # keyed on the kernels' sources and those of the stages' kernels they inline
-# (`unorm8` and `blend_byte` of softras.pipeline.ops, `wrap_index` and
+# (`unorm8` of softras.pipeline.ops, `wrap_index` and
 # `ewa_texel` of softras.pipeline.texture, `ewa_ellipse` of
 # softras.pipeline.texture_beyond, and softras.pipeline.libm).
 _SOURCES = sources_stamp(ops, texture, libm, texture_beyond)

@@ -27,15 +27,22 @@ import numpy as np
 
 from softras.kernels.lanes import _LI_COV, _LI_DST, _LI_PASS, _LI_PIX, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
 from softras.kernels.rasterize import _tile_columns
-from softras.kernels.rgba8 import _HALF_LANES, _LANES, _ONE_LANES, _spread, _unspread
+from softras.kernels.rgba8 import _BORROW_LANES, _HALF_LANES, _LANES, _ONE_LANES, _spread, _unspread
 from softras.kernels.setup import TILE
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.threads import _owns
 from softras.pipeline import ops as ops_stage
-from softras.pipeline.ops import _blend, blend_byte
+from softras.pipeline.ops import _blend
 
 DEPTH_SCALE = float((1 << ops_stage.DEPTH_BITS) - 1)
 LESS = ops_stage.DEPTH_FUNCS["less"]                   # (the common depth test: `_depth_test_lanes`)
+# What each depth function passes (`_depth_pass_k`), 4 bits a function in
+# the order of its code: bit 0 a depth less than the stored one, bit 1
+# equal, bit 2 greater, bit 3 unordered (NaN on either side).  Disabled
+# (code 0) and "always" pass all; "notequal" passes the unordered too.
+_RELATIONS = {None: 0b1111, "never": 0, "less": 0b0001, "equal": 0b0010, "lequal": 0b0011, "greater": 0b0100,
+              "notequal": 0b1101, "gequal": 0b0110, "always": 0b1111}
+_ACCEPTS = np.int64(sum(bits << (4 * ops_stage.DEPTH_FUNCS[name]) for name, bits in _RELATIONS.items()))
 
 # The framebuffer the kernels update in place (see the module docstring):
 # color32 the (H, W, S, 4) uint8 colour buffer seen as (H, W, S) RGBA8 words
@@ -260,23 +267,19 @@ def _depth_pass_k(func, k, stored):
     """`softras.pipeline.ops._depth_pass` on depths held as their 24-bit integers k (the
     depth is k / DEPTH_SCALE, a strictly increasing map, so every comparison
     agrees) and -1 for NaN, which compares as NaN does: unequal to all,
-    neither less nor greater."""
+    neither less nor greater.
+
+    Without a branch: the function's bits of `_ACCEPTS` (the relations it
+    passes) select the comparisons, so a loop over pixels with the function
+    unknown until the draw still vectorises (`softras.kernels.draw._flat_row`'s
+    copy for any state), and where func is a constant the selection folds
+    away: "less" compiles to ``ordered & (k < stored)``."""
+    accepts = (_ACCEPTS >> (4 * func)) & 15
     ordered = (k >= 0) & (stored >= 0)
-    if func == 0 or func == 8:
-        return True
-    if func == 1:
-        return False
-    if func == 2:
-        return ordered & (k < stored)
-    if func == 3:
-        return ordered & (k == stored)
-    if func == 4:
-        return ordered & (k <= stored)
-    if func == 5:
-        return ordered & (k > stored)
-    if func == 6:
-        return (not ordered) | (k != stored)
-    return ordered & (k >= stored)
+    unordered = (k < 0) | (stored < 0)
+    relation = ((accepts & 1 != 0) & (k < stored)) | ((accepts & 2 != 0) & (k == stored)) \
+        | ((accepts & 4 != 0) & (k > stored))
+    return (ordered & relation) | (unordered & (accepts & 8 != 0))
 
 
 @numba.njit(cache=True, inline="always")
@@ -337,8 +340,8 @@ def _blend_lanes(n, li, blend):
 @numba.njit(cache=True, inline="always")
 def _write_word(color32, py, px, p, n_samples, blend, word):
     """`softras.pipeline.ops.apply_fragments`'s colour write: store (blend == 0:
-    one 32-bit store per sample) or blend (`softras.pipeline.ops.blend_byte` per
-    channel, as `softras.pipeline.ops.blend_unorm8`) the fragment's RGBA8 word (R in the
+    one 32-bit store per sample) or blend (`_blend_word`: `softras.pipeline.ops.blend_byte`
+    per channel, as `softras.pipeline.ops.blend_unorm8`) the fragment's RGBA8 word (R in the
     low byte) into the samples of pixel (px, py) set in mask p.  A blend
     into every sample of a pixel whose samples hold one word (inside a
     triangle of every earlier layer: most pixels) is worked out once and
@@ -382,25 +385,35 @@ def _write_floats(color_f, py, px, p, n_samples, blend, r, g, b, a):
 @numba.njit(cache=True, inline="always")
 def _blend_word(blend, word, stored, alpha):
     """`softras.pipeline.ops.blend_byte` on each channel of the RGBA8 words (fragment ``word``
-    with alpha byte ``alpha`` over ``stored``).  "over", "over_straight" and
-    "add" run on the four spread lanes at once (`_mul_lanes`, then a
-    saturating add: every lane sum stays below 2^9); the other equations
-    per channel."""
-    if blend == 1 or blend == 2 or blend == 3:
-        src, dst = _spread(word), _spread(stored)
-        if blend == 1:
-            total = src + _mul_lanes(dst, 255 - alpha)
-        elif blend == 2:
-            total = _mul_lanes(src, alpha) + _mul_lanes(dst, 255 - alpha)
-        else:
-            total = src + dst
-        carry = (total >> np.uint64(8)) & _ONE_LANES          # lanes over 255
-        total = (total | (carry * np.uint64(255))) & _LANES
-        return _unspread(total)
-    blended = 0
-    for c in range(4):
-        blended |= blend_byte(blend, (word >> (8 * c)) & 255, (stored >> (8 * c)) & 255, alpha) << (8 * c)
-    return blended
+    with alpha byte ``alpha`` over ``stored``), on the four spread lanes at
+    once and without a branch, so that a loop over pixels with the mode
+    unknown until the draw still vectorises (`softras.kernels.draw._flat_row`'s
+    copy for any state); where blend is a constant the other modes' values
+    fold away.  "none", "over", "over_straight" and "add" are a sum of two
+    terms (`_mul_lanes`), saturated (every lane sum stays below 2^9);
+    "subtract" and "reverse_subtract" a difference and "min" and "max" a
+    choice, from the lanes of ``(src | 256) - dst``: 256 + src - dst, at
+    least 256 where src >= dst (no lane borrows from the next)."""
+    src, dst = _spread(word), _spread(stored)
+    first = _mul_lanes(src, alpha) if blend == 2 else src
+    second = dst if blend == 3 else _mul_lanes(dst, 255 - alpha)
+    total = first + (second if blend != 0 else np.uint64(0))
+    carry = (total >> np.uint64(8)) & _ONE_LANES          # lanes over 255
+    summed = (total | (carry * np.uint64(255))) & _LANES
+    forward, backward = (src | _BORROW_LANES) - dst, (dst | _BORROW_LANES) - src
+    src_ge = ((forward >> np.uint64(8)) & _ONE_LANES) * np.uint64(255)      # 255 in the lanes where src >= dst
+    dst_ge = ((backward >> np.uint64(8)) & _ONE_LANES) * np.uint64(255)
+    if blend <= 3:
+        lanes = summed
+    elif blend == 4:
+        lanes = forward & src_ge
+    elif blend == 5:
+        lanes = backward & dst_ge
+    elif blend == 6:
+        lanes = (dst & src_ge) | (src & ~src_ge)
+    else:
+        lanes = (src & src_ge) | (dst & ~src_ge)
+    return _unspread(lanes & _LANES)
 
 
 @numba.njit(cache=True, inline="always")

@@ -17,6 +17,7 @@ import numpy as np
 _LANES = np.uint64(0x00FF00FF00FF00FF)
 _HALF_LANES = np.uint64(0x0080008000800080)
 _ONE_LANES = np.uint64(0x0001000100010001)
+_BORROW_LANES = np.uint64(0x0100010001000100)     # (256 in each lane: a difference that cannot borrow)
 
 
 @numba.njit(cache=True, inline="always")
