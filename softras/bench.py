@@ -172,6 +172,7 @@ def scenes(full: bool = False, max_triangles: int = 1_000_000, max_side: int = 2
         BenchScene("floor_aniso16_512", floor_scene(512, anisotropy=16), quick=False),
         BenchScene("msaa4_24k_512", grid_scene(110, 512, samples=4)),
         BenchScene("blended_8x128_512", blended_scene(512)),
+        BenchScene("transparent_8x128_512", blended_scene(512, transparent=True), levels=False),
         # Stand-ins for real content (gl level only: the supersampled truth
         # of a lit 70k-triangle scene would cost minutes).
         BenchScene("scan_phong_71k_512", lit_scene(512, "phong", 256, 140), levels=False),

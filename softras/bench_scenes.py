@@ -40,15 +40,27 @@ def floor_scene(side: int, anisotropy: float = 1) -> dict:
     }
 
 
-def blended_scene(side: int, layers: int = 8, cols: int = 8) -> dict:
-    """``layers`` translucent tilted grids (2*cols^2 triangles each) blended "over", no depth test."""
+def blended_scene(side: int, layers: int = 8, cols: int = 8, transparent: bool = False) -> dict:
+    """``layers`` translucent tilted grids (2*cols^2 triangles each) blended "over", no depth test.
+
+    With ``transparent`` the pass of a renderer's transparent objects
+    instead: an opaque grid first (depth-tested, writing depth) slanting
+    through the layers, then the layers depth-tested against it ("less")
+    without writing depth, so that each is hidden where it lies behind
+    the opaque one."""
     nodes = []
+    if transparent:
+        nodes.append({"name": "opaque", "rotate": [50, 0, 1, 0], "translate": [0, 0, -0.3],
+                      "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [2.2, 2.2],
+                               "corner_colors": [[0.8, 0.8, 0.7, 1], [0.3, 0.3, 0.3, 1], [0.5, 0.6, 0.7, 1],
+                                                 [0.9, 0.5, 0.2, 1]]}})
     for k in range(layers):
         a = 0.25 + 0.5 * k / max(1, layers - 1)
         nodes.append({"name": f"layer{k}", "rotate": [-20 + 5 * k, 1, 0.3, 0], "translate": [0, 0, -0.1 * k],
                       "mesh": {"procedural": "grid", "cols": cols, "rows": cols, "size": [2.2, 2.2],
                                "corner_colors": [[1, 0, 0, a], [0, 1, 0, a], [0, 0, 1, a], [1, 1, 1, a]]},
-                      "blend": "over", "depth_test": False})
+                      "blend": "over", "depth_test": "less" if transparent else False,
+                      "depth_write": False})
     return {"softras_scene": 1, "width": side, "height": side, "background": [0, 0, 0, 1],
             "camera": {"projection": "perspective", "fov_y": 50, "near": 0.1, "far": 100,
                        "eye": [0, 0, 2.6], "target": [0, 0, 0]},

@@ -51,7 +51,11 @@ def test_benchmark_set_covers_the_issue_and_scales():
                     "bump_mapped_8k_512": (9024, 512, 1, "phong", True, "triangles"),
                     "lines_8k_512": (8320, 512, 1, "unlit", False, "lines"),
                     "parts_64x128_512": (8192, 512, 1, "unlit", False, "triangles"),
-                    "textured_parts_64x128_512": (8192, 512, 1, "phong", True, "triangles")}, uses
+                    "textured_parts_64x128_512": (8192, 512, 1, "phong", True, "triangles"),
+                    "transparent_8x128_512": (1152, 512, 1, "unlit", False, "triangles")}, uses
+    transparent = loaded["transparent_8x128_512"].draws
+    assert transparent[0].blend == "none" and transparent[0].depth_write
+    assert all(d.blend == "over" and d.depth_test == "less" and not d.depth_write for d in transparent[1:])
     assert loaded["bump_mapped_8k_512"].draws[0].material.bump_map is not None
     assert len(loaded["parts_64x128_512"].draws) == 64
     assert {d.material.texture for d in loaded["textured_parts_64x128_512"].draws} == {"checker"}
