@@ -799,37 +799,45 @@ def test_word_blend_equals_the_per_channel_blend():
 
 
 def state_grid_scene(lit: bool) -> dict:
-    """Every depth function (and none) with every blend mode, a draw each
-    (72 draws), with and without depth writes: overlapping tilted quads
-    over the whole picture on three planes that cross, each plane drawn
-    more than once (equal depths) and one quad past the far plane on one
-    side (clipped there), vertex colours with alpha from 0.2 to 0.9; with
-    ``lit`` Phong-shaded by a point light (the lane path), else unlit
-    (the row path)."""
+    """Every depth function (and none) with every blend mode, each pair in
+    a cell of its own (a column a function, a row a blend; orthographic,
+    so that no cell's result is drawn over by another's): an opaque quad
+    writing depth, then with the pair's state a quad on a plane that
+    crosses it (nearer on one side, farther on the other) and a quad on
+    its very plane (equal depths), with depth writes in every other cell,
+    vertex colours with alpha from 0.2 to 0.9; with ``lit`` Phong-shaded
+    by a point light (the lane path), else unlit (the row path)."""
     funcs = ["less", "lequal", "equal", "greater", "gequal", "notequal", "always", "never", False]
     blends = ["none", "over", "over_straight", "add", "subtract", "reverse_subtract", "min", "max"]
-    nodes = [{"name": "ground", "mesh": {"positions": [[-3, -3, -0.2], [3, -3, 0.2], [3, 3, -0.2], [-3, 3, 0.2]],
-                                         "indices": [[0, 1, 2], [0, 2, 3]], "colors": [[0.5, 0.4, 0.3, 1]] * 4}}]
-    for k, (func, blend) in enumerate((f, b) for f in funcs for b in blends):
-        tilt = [0.3, -0.3, 0.0][k % 3]
-        mesh = {"positions": [[-3, -3, -tilt], [3, -3, tilt], [3, 3, tilt], [-3, 3, -tilt]],
-                "indices": [[0, 1, 2], [0, 2, 3]],
-                "colors": [[(k * 0.37) % 1, (k * 0.61) % 1, (k * 0.13) % 1, 0.2 + 0.7 * ((k * 0.29) % 1)],
-                           [1, 0.2, 0.1, 0.9], [0.1, 1, 0.3, 0.5], [0.2, 0.3, 1, 0.2]]}
-        node = {"name": f"{func}-{blend}", "mesh": mesh, "depth_test": func, "depth_write": k % 2 == 0,
-                "blend": blend, "translate": [0, 0, -0.05 * (k % 2)]}
-        if k % 9 == 4:
-            mesh["positions"][1][2] = mesh["positions"][2][2] = -40     # (beyond the far plane there)
-        if lit:
-            mesh["normals"] = [[0, 0, 1], [0.3, 0, 1], [0, 0.3, 1], [-0.3, -0.3, 1]]
-            node["material"] = {"shading": "phong", "ambient": 0.2, "diffuse": 0.8, "specular": 0.5,
-                                "shininess": 16}
-        nodes.append(node)
-    scene = {"softras_scene": 1, "width": 61, "height": 43, "background": [0.1, 0.2, 0.3, 1], "nodes": nodes,
-             "camera": {"projection": "perspective", "fov_y": 70, "near": 0.5, "far": 6,
-                        "eye": [0, 0, 2.5], "target": [0, 0, 0]}}
+    nodes = []
+    for i, func in enumerate(funcs):
+        for j, blend in enumerate(blends):
+            k = len(blends) * i + j
+            x0, x1, y0, y1 = i, i + 1, j, j + 1
+
+            def quad(z_left, z_right, colors, **state):
+                mesh = {"positions": [[x0, y0, z_left], [x1, y0, z_right], [x1, y1, z_right], [x0, y1, z_left]],
+                        "indices": [[0, 1, 2], [0, 2, 3]], "colors": colors}
+                node = {"name": f"{func}-{blend}-{len(nodes)}", "mesh": mesh, **state}
+                if lit:
+                    mesh["normals"] = [[0, 0, 1], [0.3, 0, 1], [0, 0.3, 1], [-0.3, -0.3, 1]]
+                    node["material"] = {"shading": "phong", "ambient": 0.2, "diffuse": 0.8, "specular": 0.5,
+                                        "shininess": 16}
+                nodes.append(node)
+
+            tint = [(k * 0.37) % 1, (k * 0.61) % 1, (k * 0.13) % 1]
+            quad(-0.2, 0.2, [[*tint, 1], [0.5, 0.4, 0.3, 1], [0.2, 0.6, 0.9, 1], [0.9, 0.9, 0.1, 1]])
+            state = {"depth_test": func, "depth_write": k % 2 == 0, "blend": blend}
+            quad(0.2, -0.2, [[1 - tint[0], tint[1], 0.5, 0.2 + 0.7 * ((k * 0.29) % 1)], [1, 0.2, 0.1, 0.9],
+                             [0.1, 1, 0.3, 0.5], [0.2, 0.3, 1, 0.2]], **state)
+            quad(-0.2, 0.2, [[0.3, 0.3, 0.3, 0.6], [0.9, 0.1, 0.6, 0.3], [0.1, 0.1, 0.1, 0.8], [1, 1, 1, 0.4]],
+                 **state)
+    scene = {"softras_scene": 1, "width": 9 * 11, "height": 8 * 9, "background": [0.1, 0.2, 0.3, 1],
+             "nodes": nodes,
+             "camera": {"projection": "orthographic", "left": 0, "right": 9, "bottom": 0, "top": 8,
+                        "near": 1, "far": 10, "eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]}}
     if lit:
-        scene["lights"] = [{"type": "point", "position": [1, 1, 3], "color": [1, 0.9, 0.8]}]
+        scene["lights"] = [{"type": "point", "position": [4, 4, 3], "color": [1, 0.9, 0.8]}]
     return scene
 
 
