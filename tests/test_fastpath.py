@@ -841,6 +841,21 @@ def state_grid_scene(lit: bool) -> dict:
     return scene
 
 
+@pytest.mark.parametrize("func", ["less", "lequal", "equal", "greater", "notequal"])
+def test_transparent_layers_hidden_in_part_are_bit_identical(func):
+    """The bench's transparent pass (`bench_scenes.blended_scene`): layers
+    "over" without depth writes, an opaque grid slanting through them, so
+    that a row of a layer is hidden at one end or both; the copy for any
+    state shades only the run between a row's first and last passing pixel
+    (`softras.kernels.draw._passing_run`) and gives the stages' bytes."""
+    from softras.bench_scenes import blended_scene
+    data = blended_scene(96, layers=4, cols=3, transparent=True)
+    for node in data["nodes"][1:]:
+        node["depth_test"] = func
+    scene = softras.load_scene(data)
+    assert_same(*both_paths(scene), f"transparent layers, {func}")
+
+
 @pytest.mark.parametrize("lit", [False, True])
 @pytest.mark.parametrize("samples", [1, 4])
 def test_every_depth_function_with_every_blend_is_bit_identical(lit, samples):
