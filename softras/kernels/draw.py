@@ -561,7 +561,7 @@ def scratch_nbytes() -> int:
 ANY_SAMPLES = 0
 DRIVER_SAMPLES = {False: (1, 4, ANY_SAMPLES), True: (1, ANY_SAMPLES)}      # untextured, textured
 
-# A row's run of at least this many pixels + 1, drawn at one sample by the
+# A row's run of more than this many pixels, drawn at one sample by the
 # row loops' copy for any state with a depth test that can fail, has its
 # two end pixels tested first; when one fails, only the run between the
 # first and last passing pixel is shaded (`_flat_row`, `_passing_run`).
