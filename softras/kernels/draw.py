@@ -103,8 +103,9 @@ from softras.kernels.lanes import (_LF_CX, _LF_CY, _LF_W, _LI_COV, _LI_PASS, _LI
 from softras.kernels.lines import draw_lines
 from softras.kernels.light import (NO_LIGHTING, _phong_words, base_colors, flat_corner_colors, phong_inputs,
                                    viewing)
-from softras.kernels.ops import (LESS, Framebuffer, _blend_word, _clear_fresh, _clear_tile, _depth_k, _depth_pass_k,
-                                 _depth_test_lanes, _tiles_out, _uses_depth, _write_lanes, new_framebuffer)
+from softras.kernels.ops import (LESS, Framebuffer, _blend_word, _clear_fresh, _clear_tile, _depth_pass_k,
+                                 _depth_test_lanes, _plane_depth_k, _tiles_out, _uses_depth, _write_lanes,
+                                 new_framebuffer)
 from softras.kernels.rasterize import (BLOCK, TILE, Bins, _block_test, _edges, _fill_bins, _list_pixels, _list_quads,
                                        _list_row, _list_whole_block, _row_run, _tile_box, _tile_columns)
 from softras.kernels.rgba32f import _float_fragments, _row_floats
@@ -1097,8 +1098,7 @@ def _flat_row(x0, x1, py, edges, offsets, t, tri_f, colors, positions, depths, w
 def _passes(px, py, plane, positions, depths, width, depth_func):
     """Whether pixel (px, py)'s one sample passes the depth test, its depth
     computed and tested as `_row_pixels_1` does."""
-    fx0, fy0, z0, dzdx, dzdy = plane
-    k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * ((py + positions[1]) - fy0))
+    k = _plane_depth_k(plane, px + positions[0], py + positions[1])
     return _depth_pass_k(depth_func, k, depths[np.uint64(py * width + px)])
 
 
@@ -1173,7 +1173,6 @@ def _row_pixels(start, end, first, last, widened, py, runs, x0, corners, corner_
         _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, plane, positions, depths, words,
                       width, use_depth, depth_func, write_z, blend, flat)
         return
-    fx0, fy0, z0, dzdx, dzdy = plane
     cy = py + 0.5
     for px in range(first, last + 1):
         w = (1.0, 0.0, 0.0)
@@ -1186,8 +1185,7 @@ def _row_pixels(start, end, first, last, widened, py, runs, x0, corners, corner_
             keep = -np.int64((runs[2 * s] <= px - x0) & (px - x0 <= runs[2 * s + 1]))
             i = pixel + np.uint64(s)
             if use_depth:
-                ox, oy = positions[2 * s], positions[2 * s + 1]
-                k = _depth_k(z0 + dzdx * ((px + ox) - fx0) + dzdy * ((py + oy) - fy0))
+                k = _plane_depth_k(plane, px + positions[2 * s], py + positions[2 * s + 1])
                 stored = depths[i]
                 keep &= -np.int64(_depth_pass_k(depth_func, k, stored))
                 written = keep & -np.int64(write_z)             # (keep where write_z is a constant True)
@@ -1206,9 +1204,7 @@ def _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, 
     covered: the same steps without the loop over the samples (with it
     LLVM vectorised the row's last pixels no more: the blended layers' gain
     of this path was lost, 8.4 -> 9.4 ms on one thread)."""
-    fx0, fy0, z0, dzdx, dzdy = plane
     row = py * width
-    zy = (py + positions[1]) - fy0
     cy = py + 0.5
     for px in range(first, last + 1):
         i = np.uint64(row + px)
@@ -1216,7 +1212,7 @@ def _row_pixels_1(start, end, first, last, widened, py, corners, corner_colors, 
         if widened:                                 # (and is the run's: a test the others would pay for)
             keep = -np.int64((start <= px) & (px <= end))
         if use_depth:
-            k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * zy)
+            k = _plane_depth_k(plane, px + positions[0], py + positions[1])
             stored = depths[i]
             keep &= -np.int64(_depth_pass_k(depth_func, k, stored))
             written = keep & -np.int64(write_z)                 # (keep where write_z is a constant True)

@@ -72,7 +72,7 @@ from softras.kernels.setup import CULL_CODES, _depth_slopes, _made_corner, _own_
 from softras.kernels.stamp import sources_stamp
 from softras.kernels.texture import NO_TEXTURE, _filter_level, _nan_max, texture_tables
 from softras.kernels.texture_beyond import _beyond_texel, beyond_tables
-from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _owns, _unowned, owners_table
+from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _owns, _unowned, owners_table, share_count
 from softras.pipeline import libm, ops, rasterize, render as stages, setup, texture, texture_beyond, vertex
 from softras.pipeline.rasterize import _raster_triangle, _sample_box
 from softras.scene import Scene
@@ -371,7 +371,7 @@ def draw_triangles(scene: Scene, draw, inputs: stages.Pass, color: np.ndarray, d
             ops.DEPTH_FUNCS[draw.depth_test], draw.depth_write, ops.BLEND_MODES[draw.blend],
             cutoff is not None, float(cutoff or 0.0), BAND_ROWS)
     bands = -(-color.shape[0] // BAND_ROWS)                                # (the kernel's bands)
-    n_threads = max(1, min(numba.get_num_threads(), bands))   # (a share without a band costs a hand-off, for nothing)
+    n_threads = share_count(bands)
     owners = owners_table(bands, n_threads)
     on_threads(lambda r: _DRAW(*args, owners, r), n_threads)
 

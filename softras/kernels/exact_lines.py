@@ -40,7 +40,7 @@ import numpy as np
 from softras.kernels.pool import on_threads
 from softras.kernels.scratch import _Scratch, read_only
 from softras.kernels.stamp import sources_stamp
-from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _unowned
+from softras.kernels.threads import NoAliasCompiler, _aligned_stack, _unowned, share_count
 from softras.pipeline import clip as clip_stage
 from softras.pipeline import lines as lines_stage
 from softras.pipeline import ops, rasterize
@@ -78,14 +78,12 @@ def draw_lines(scene, draw, inputs: stages.Pass, color: np.ndarray, depth: np.nd
              _scratch.take("qy", (n, 4), np.float64), _scratch.take("window", (n, 2, 3), np.float64),
              _scratch.take("inv_w", (n, 2), np.float64), _scratch.take("ends", (n, 2, 4), np.float64))
     finite, values = read_only(finite, np.bool_), read_only(stages.vertex_colors(mesh), np.float64)
-    # (Each pass in as many shares as it has pieces, up to the threads: a
-    # share with nothing to do costs a hand-off to the pool all the same.)
-    n_set_up = max(1, min(numba.get_num_threads(), n))
+    n_set_up = share_count(n)
     on_threads(lambda r: _SET_UP_LINES(r, n_set_up, c, dist, finite, indices, values, rectangular, scene.width,
                                        scene.height, *table), n_set_up)
     material = read_only(draw.material.color, np.float64)
     offsets = read_only(lines_stage.sample_offsets(positions, rectangular, False), np.float64)
-    n_cover = max(1, min(numba.get_num_threads(), -(-scene.height // BAND_ROWS)))
+    n_cover = share_count(-(-scene.height // BAND_ROWS))
     on_threads(lambda r: _COVER_LINES(r, n_cover, BAND_ROWS, material, offsets, positions, rectangular, color,
                                       depth, depth_func, write_z, ops.BLEND_MODES[draw.blend], *table), n_cover)
 

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from softras.kernels.lanes import _LF_CX, _LF_CY, _LF_S, _LF_T, _LF_TEX, _LF_W, _LI_PX, _LI_PY, _LI_WORD, _LI_Z
-from softras.kernels.ops import _depth_k
+from softras.kernels.ops import _plane_depth_k
 from softras.kernels.setup import _F_DZDX, _F_DZDY, _F_W, _F_X, _F_Y, _F_Z
 from softras.pipeline.ops import unorm8
 
@@ -198,14 +198,11 @@ def _lane_depths(n, t, tri_f, positions, li, n_samples):
     samples from its plane equation, clamped and rounded to 24 bits, as the
     integer k of the stored k / DEPTH_SCALE (-1 for NaN), into the _LI_Z rows
     (a vectorised loop)."""
-    x0, y0 = tri_f[t, _F_X], tri_f[t, _F_Y]
-    z0, dzdx, dzdy = tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY]
+    plane = (tri_f[t, _F_X], tri_f[t, _F_Y], tri_f[t, _F_Z], tri_f[t, _F_DZDX], tri_f[t, _F_DZDY])
     for s in range(n_samples):
         ox, oy = positions[s, 0], positions[s, 1]
         for l in range(n):
-            zx = (li[_LI_PX, l] + ox) - x0
-            zy = (li[_LI_PY, l] + oy) - y0
-            li[_LI_Z + s, l] = _depth_k(z0 + dzdx * zx + dzdy * zy)
+            li[_LI_Z + s, l] = _plane_depth_k(plane, li[_LI_PX, l] + ox, li[_LI_PY, l] + oy)
 
 
 def plain_colors(base: np.ndarray) -> bool:

@@ -200,6 +200,20 @@ def _depth_k(z):
 
 
 @numba.njit(cache=True, inline="always")
+def _plane_depth_k(plane, x, y):
+    """`_depth_k` of a set-up triangle's depth at the window point (x, y)
+    (a sample: its pixel plus its offset in the pixel), from its plane
+    ``plane`` = (x0, y0, z0, dz/dx, dz/dy): z0 + dz/dx (x - x0) + dz/dy
+    (y - y0), `softras.pipeline.interpolate.depth_at_samples`'s operations
+    in its order (the lanes' `softras.kernels.interpolate._lane_depths`,
+    and the row loops of `softras.kernels.draw` and
+    `softras.kernels.rgba32f`, where the term of y is the same for a whole
+    row and LLVM computes it once)."""
+    fx0, fy0, z0, dzdx, dzdy = plane
+    return _depth_k(z0 + dzdx * (x - fx0) + dzdy * (y - fy0))
+
+
+@numba.njit(cache=True, inline="always")
 def _depth_test_lane(mask, li, l, depth, py, px, depth_func, write_z, n_samples):
     """`softras.pipeline.ops.apply_fragments`'s depth test (and depth write) of
     lane l's samples in ``mask`` against the integer depth buffer, writing

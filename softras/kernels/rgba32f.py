@@ -37,7 +37,7 @@ import numpy as np
 from softras.kernels.interpolate import _mix, _weights_at
 from softras.kernels.lanes import _LF_LIT, _LF_TEX, _LF_W, _LI_PASS, _LI_PX, _LI_PY, _whole_vectors
 from softras.kernels.light import _phong_colors
-from softras.kernels.ops import LESS, _depth_k, _depth_pass_k, _resolve_box, _write_floats
+from softras.kernels.ops import LESS, _depth_pass_k, _plane_depth_k, _resolve_box, _write_floats
 from softras.kernels.stamp import sources_stamp
 from softras.pipeline import libm, ops
 from softras.pipeline import render as stages
@@ -145,13 +145,11 @@ def _row_floats_less(start, end, py, corners, corner_colors, plane, positions, d
     branch, where the test fails.  depths, floats : the depth buffer and
     the colour buffer (H, W, 1, 4) seen as one row each; width : the
     picture's."""
-    fx0, fy0, z0, dzdx, dzdy = plane
     row = py * width
-    zy = (py + positions[1]) - fy0
     cy = py + 0.5
     for px in range(start, end + 1):
         i = np.uint64(row + px)
-        k = _depth_k(z0 + dzdx * ((px + positions[0]) - fx0) + dzdy * zy)
+        k = _plane_depth_k(plane, px + positions[0], py + positions[1])
         stored = depths[i]
         passed = _depth_pass_k(LESS, k, stored)
         depths[i] = k if passed else stored

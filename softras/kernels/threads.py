@@ -105,6 +105,14 @@ def _aligned_stack(typingctx):
 ONE_SHARE = np.zeros(0, np.int64)
 
 
+def share_count(pieces: int) -> int:
+    """How many shares a pass of ``pieces`` pieces of work (bands, lines)
+    runs in on `softras.kernels.pool.on_threads`: one per thread, at most
+    one per piece (a share with nothing to do costs a hand-off to the pool
+    all the same), at least one."""
+    return max(1, min(numba.get_num_threads(), pieces))
+
+
 def owners_table(n: int, n_shares: int) -> np.ndarray:
     """The table n_shares shares take n pieces of work in (`_owns`: the tiles
     of a batch, the bands of an exact draw): int64 (n,) of -1 (nobody's yet)
